@@ -1,0 +1,62 @@
+//! The crate's one error type.
+
+use core::fmt;
+
+/// Everything that can go wrong when reading a blob or stepping the filter.
+///
+/// Variants are named phase-then-problem: `Blob*` while reading weights,
+/// `Input*`/`NonFiniteInput` for a measurement, `Filter*` inside the filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Error {
+    /// The blob ended before its header or body was complete.
+    BlobTruncated,
+    /// The blob does not start with [`crate::blob::MAGIC`].
+    BlobBadMagic,
+    /// The blob's format version is not [`crate::blob::FORMAT_VERSION`].
+    BlobBadVersion,
+    /// The blob's declared dimensions, or the length of one of its arrays,
+    /// differ from the sizes this build was compiled for.
+    BlobShapeMismatch,
+    /// The body decoded but its CRC-32 does not match.
+    BlobBadCrc,
+    /// The body could not be decoded (bad varint, bad enum tag, bad UTF-8...).
+    BlobMalformed,
+    /// Bytes follow the end of the blob.
+    BlobTrailingBytes,
+    /// A weight, a normalisation constant or a filter setting is NaN or
+    /// infinite, or a variance is not positive.
+    BlobNonFinite,
+    /// A measurement holds NaN or an infinity, or is too large to be a
+    /// real reading; the filter state was left unchanged.
+    NonFiniteInput,
+    /// The innovation covariance `S` lost positive definiteness; the filter
+    /// state was left unchanged.
+    FilterNotPositiveDefinite,
+    /// An output buffer or argument has the wrong size.
+    InputBadLength,
+    /// The filter produced a non-finite state; the step was rolled back.
+    FilterNonFinite,
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = match self {
+            Error::BlobTruncated => "blob: truncated",
+            Error::BlobBadMagic => "blob: bad magic (not a Koopman weights blob)",
+            Error::BlobBadVersion => "blob: unsupported format version",
+            Error::BlobShapeMismatch => "blob: dimensions differ from this build's",
+            Error::BlobBadCrc => "blob: CRC mismatch (corrupted)",
+            Error::BlobMalformed => "blob: body could not be decoded",
+            Error::BlobTrailingBytes => "blob: trailing bytes after the end",
+            Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
+            Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
+            Error::FilterNotPositiveDefinite => "filter: innovation covariance not positive definite",
+            Error::InputBadLength => "input: buffer has the wrong length",
+            Error::FilterNonFinite => "filter: update produced a non-finite state",
+        };
+        f.write_str(s)
+    }
+}
+
+impl core::error::Error for Error {}

@@ -1,0 +1,48 @@
+//! A learned Koopman model and a Kalman filter over its latent state and
+//! the system's physical parameters, for microcontrollers: `no_std`, no
+//! allocator, fixed sizes, no panics.
+//!
+//! - [`blob`]: the weights format (one definition for trainer and device).
+//! - [`model::Model`]: reads a blob in place; encoder, decoder, simulation.
+//! - [`filter::Estimator`]: the 18-dim Kalman filter, step by step.
+//!
+//! Sizes are the named constants below; the filter's notation (`F`, `H`,
+//! `Q`, `R`, `P`) is defined once in [`filter`].
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+pub mod blob;
+mod error;
+pub mod filter;
+pub mod model;
+
+pub use error::Error;
+pub use filter::{Estimator, StepOutput, Trust};
+pub use model::Model;
+
+/// Measured state size: `(theta, theta_dot)`.
+pub const STATE_DIM: usize = 2;
+/// Latent size (the encoder's output).
+pub const LATENT_DIM: usize = 16;
+/// Physical parameters carried in the filter state.
+pub const PARAM_DIM: usize = 2;
+/// Filter state size, `[y; p]`.
+pub const AUG_DIM: usize = LATENT_DIM + PARAM_DIM;
+/// Hidden width of the encoder and decoder.
+pub const HIDDEN_DIM: usize = 128;
+/// Control inputs (torque).
+pub const INPUT_DIM: usize = 1;
+
+/// A raw or normalised measured state.
+pub type State = [f32; STATE_DIM];
+/// A latent vector.
+pub type Latent = [f32; LATENT_DIM];
+/// An augmented state `[y; p]` as a plain array.
+pub type Aug = [f32; AUG_DIM];

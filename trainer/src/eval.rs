@@ -1,0 +1,129 @@
+//! Scoring per the protocol, through the estimator crate (the device's code):
+//! estimation from `x_0 .. x_63`, simulation of `x_1 .. x_127` from `x_0`,
+//! MSE in normalised units averaged over both dimensions.
+
+use anyhow::{Context, Result};
+use estimator::{Estimator, Model};
+use serde::Serialize;
+
+use crate::data::Dataset;
+use crate::export::ESTIMATION_STEPS;
+
+/// One test rollout's scores.
+#[derive(Debug, Clone, Serialize)]
+pub struct RolloutScore {
+    /// Rollout id.
+    pub rollout: u32,
+    /// True length.
+    pub length: f64,
+    /// Simulation MSE with the true length given.
+    pub mse_true: f64,
+    /// The filter's length estimate after `x_63`.
+    pub length_est: f32,
+    /// Its standard deviation.
+    pub length_std: f32,
+    /// Sigma of the corrections at t = 32..63.
+    pub sigma: f32,
+    /// Whether the estimate is trusted.
+    pub trusted: bool,
+    /// Simulation MSE with the estimated length.
+    pub mse_klm: f64,
+}
+
+/// Per-length means.
+#[derive(Debug, Clone, Serialize)]
+pub struct LengthScore {
+    /// The length.
+    pub length: f64,
+    /// Mean MSE with the true length.
+    pub mse_true: f64,
+    /// Mean MSE with the filter's estimate (KLM).
+    pub klm: f64,
+    /// Mean length estimate.
+    pub length_est: f64,
+    /// Mean sigma.
+    pub klm_sigma: f64,
+    /// Rollouts flagged as not trusted.
+    pub untrusted: usize,
+    /// Rollouts at this length.
+    pub n: usize,
+}
+
+/// Normalised-units MSE of a simulation against the truth.
+pub fn sim_mse(model: &Model<'_>, xs: &[[f64; 2]], params: [f32; 2]) -> Result<f64> {
+    let x0 = [xs[0][0] as f32, xs[0][1] as f32];
+    let mut out = vec![[0.0f32; 2]; xs.len() - 1];
+    model.simulate(&x0, &params, &mut out).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut se = 0.0;
+    for (sim, truth) in out.iter().zip(&xs[1..]) {
+        let a = model.normalise(sim);
+        let b = model.normalise(&[truth[0] as f32, truth[1] as f32]);
+        se += ((a[0] - b[0]) as f64).powi(2) + ((a[1] - b[1]) as f64).powi(2);
+    }
+    Ok(se / (2.0 * out.len() as f64))
+}
+
+/// Scores every rollout of a test set.
+pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
+    let mut out = Vec::new();
+    for r in &ds.rollouts {
+        let m = ds.meta(r.id).context("test rollout without truth")?;
+        let mse_true = sim_mse(model, &r.xs, [m.length as f32, 0.0])?;
+        let mut est = Estimator::new(model);
+        let mut last = None;
+        for x in r.xs.iter().take(ESTIMATION_STEPS) {
+            last = Some(est.step(&[x[0] as f32, x[1] as f32]).map_err(|e| anyhow::anyhow!("{e}"))?);
+        }
+        let last = last.context("empty rollout")?;
+        let mse_klm = sim_mse(model, &r.xs, last.params)?;
+        out.push(RolloutScore {
+            rollout: r.id,
+            length: m.length,
+            mse_true,
+            length_est: last.params[0],
+            length_std: last.param_std[0],
+            sigma: last.sigma[0],
+            trusted: last.trust == estimator::Trust::Trusted,
+            mse_klm,
+        });
+    }
+    Ok(out)
+}
+
+/// Means per length, in order of first appearance.
+pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
+    let mut lengths: Vec<f64> = Vec::new();
+    for s in scores {
+        if !lengths.contains(&s.length) {
+            lengths.push(s.length);
+        }
+    }
+    lengths
+        .into_iter()
+        .map(|l| {
+            let v: Vec<&RolloutScore> = scores.iter().filter(|s| s.length == l).collect();
+            let n = v.len() as f64;
+            LengthScore {
+                length: l,
+                mse_true: v.iter().map(|s| s.mse_true).sum::<f64>() / n,
+                klm: v.iter().map(|s| s.mse_klm).sum::<f64>() / n,
+                length_est: v.iter().map(|s| s.length_est as f64).sum::<f64>() / n,
+                klm_sigma: v.iter().map(|s| s.sigma as f64).sum::<f64>() / n,
+                untrusted: v.iter().filter(|s| !s.trusted).count(),
+                n: v.len(),
+            }
+        })
+        .collect()
+}
+
+/// A markdown table of per-length scores.
+pub fn table(rows: &[LengthScore]) -> String {
+    let mut s = String::from("| L | MSE (true L) | KLM MSE | L estimate | KLM sigma | untrusted |\n| --- | --- | --- | --- | --- | --- |\n");
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {:.4} | {:.4} | {:.3} | {:.4} | {}/{} |\n",
+            r.length, r.mse_true, r.klm, r.length_est, r.klm_sigma, r.untrusted, r.n
+        ));
+    }
+    s
+}

@@ -1,0 +1,227 @@
+//! Export: a trained run becomes one weights blob (see `estimator::blob`).
+//!
+//! `K` is refitted once over every training transition with the trained
+//! encoder (the global matrix the batches converged to). `R` and the latent
+//! part of `Q` scale the per-dimension variance of the one-step latent
+//! residual `phi(x_{t+1}) - K g_t`. The trust threshold is calibrated by
+//! running the estimator crate's own filter on the training rollouts.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use burn::nn::Linear;
+use burn::tensor::{Tensor, TensorData};
+use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, Layer, ParamSpec};
+use estimator::{AUG_DIM, Estimator, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
+use serde::Serialize;
+
+use crate::config::TrainConfig;
+use crate::data::Dataset;
+use crate::io::write_atomic;
+use crate::model::{Klm, Mlp, fit_koopman};
+use crate::train::{self, Norm, RunPaths, RunState};
+
+/// Protocol: the filter sees `x_0 .. x_63`.
+pub const ESTIMATION_STEPS: usize = 64;
+/// Protocol: corrections at `t >= 32` count towards sigma.
+pub const BURN_IN: u16 = 32;
+
+/// Little-endian bytes of `f32` values.
+pub fn le_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// A burn `Linear` (weight `[d_in, d_out]`, `y = x W + b`) as the blob's
+/// output-major `(d_in, d_out, W rows, b)`.
+pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
+    let w = l.weight.val();
+    let [d_in, d_out] = w.dims();
+    let w: Vec<f32> = w.into_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default();
+    let mut out = vec![0.0f32; d_in * d_out];
+    for i in 0..d_in {
+        for o in 0..d_out {
+            out[o * d_in + i] = w[i * d_out + o];
+        }
+    }
+    let b: Vec<f32> = match &l.bias {
+        Some(b) => b.val().into_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default(),
+        None => vec![0.0; d_out],
+    };
+    (d_in as u16, d_out as u16, le_bytes(&out), le_bytes(&b))
+}
+
+/// Owned byte arrays a [`Blob`] borrows from.
+pub struct BlobParts {
+    enc: Vec<(u16, u16, Vec<u8>, Vec<u8>)>,
+    dec: Vec<(u16, u16, Vec<u8>, Vec<u8>)>,
+    f: Vec<u8>,
+    b: Vec<u8>,
+}
+
+impl BlobParts {
+    /// From the MLPs and `F` (row-major AUG x AUG).
+    pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32]) -> Self {
+        BlobParts {
+            enc: [&enc.l0, &enc.l1, &enc.l2].map(linear_to_blob).into(),
+            dec: [&dec.l0, &dec.l1, &dec.l2].map(linear_to_blob).into(),
+            f: le_bytes(f),
+            b: le_bytes(&[0.0; AUG_DIM * INPUT_DIM]),
+        }
+    }
+
+    /// The blob, borrowing from `self`.
+    pub fn blob<'a>(&'a self, norm: &Norm, cfg: &TrainConfig, filter: FilterSpec, params: [ParamSpec<'a>; PARAM_DIM]) -> Blob<'a> {
+        let layer = |(i, o, w, b): &'a (u16, u16, Vec<u8>, Vec<u8>)| Layer { d_in: *i, d_out: *o, weight: F32s(w), bias: F32s(b) };
+        Blob {
+            header: Header::CURRENT,
+            body: Body {
+                dt: crate::sim::DT as f32,
+                activation: cfg.activation,
+                norm_mu: norm.mu.map(|v| v as f32),
+                norm_s: norm.s.map(|v| v as f32),
+                params,
+                encoder: [layer(&self.enc[0]), layer(&self.enc[1]), layer(&self.enc[2])],
+                decoder: [layer(&self.dec[0]), layer(&self.dec[1]), layer(&self.dec[2])],
+                f: F32s(&self.f),
+                b: F32s(&self.b),
+                filter,
+            },
+        }
+    }
+}
+
+/// Serialises a blob with its CRC.
+pub fn blob_bytes(blob: &Blob<'_>) -> Result<Vec<u8>> {
+    let mut buf = vec![0u8; 1 << 20];
+    let n = blob.to_slice(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?.len();
+    buf.truncate(n);
+    Ok(buf)
+}
+
+/// What an export measured, saved beside the blob.
+#[derive(Debug, Serialize)]
+pub struct ExportInfo {
+    /// The run's config.
+    pub config: TrainConfig,
+    /// The run's state at export.
+    pub iteration: usize,
+    /// Training wall time, s.
+    pub train_seconds: f64,
+    /// One-step latent residual variance per dimension.
+    pub residual_var: Vec<f32>,
+    /// Sigma per training rollout's estimation window: max and median.
+    pub train_sigma_max: f32,
+    /// Median of the same.
+    pub train_sigma_median: f32,
+    /// The calibrated threshold.
+    pub sigma_threshold: f32,
+    /// Blob size, bytes.
+    pub blob_bytes: usize,
+}
+
+/// Sigma of the length corrections over the protocol's estimation window.
+pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
+    let mut est = Estimator::new(model);
+    let mut last = None;
+    for x in xs.iter().take(ESTIMATION_STEPS) {
+        last = Some(est.step(&[x[0] as f32, x[1] as f32]).map_err(|e| anyhow::anyhow!("{e}"))?);
+    }
+    Ok(last.context("empty rollout")?.sigma[0])
+}
+
+/// Exports run `dir` to `out`.
+pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
+    let paths = RunPaths::new(dir);
+    let cfg: TrainConfig = serde_json::from_str(&std::fs::read_to_string(&paths.config).with_context(|| format!("{}", paths.config.display()))?)?;
+    let state: RunState = serde_json::from_str(&std::fs::read_to_string(&paths.state)?)?;
+    let device = train::device();
+    let model = train::load_model(&paths, &cfg, &device)?;
+    let ds = train::training_data(&cfg);
+    let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
+    let parts = BlobParts::new(&model.enc, &model.dec, &f);
+    let params = [
+        ParamSpec { name: "length", declared: true, train_range: range(&cfg.lengths) },
+        ParamSpec { name: "none", declared: false, train_range: [0.0, 0.0] },
+    ];
+    let mut q = [0.0f32; AUG_DIM];
+    let mut r = [0.0f32; LATENT_DIM];
+    let mut prior_var = [0.0f32; AUG_DIM];
+    for k in 0..LATENT_DIM {
+        q[k] = (cfg.q_latent as f32) * residual_var[k];
+        r[k] = (cfg.r_latent as f32) * residual_var[k];
+        prior_var[k] = residual_var[k];
+    }
+    prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
+    let mut filter = FilterSpec { q, r, prior_mean: [0.0; PARAM_DIM], prior_var, burn_in: BURN_IN, sigma_threshold: 1.0 };
+    // Calibrate: sigma over every training rollout's estimation window.
+    let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut sigmas = ds.rollouts.iter().map(|r| window_sigma(&m, &r.xs)).collect::<Result<Vec<_>>>()?;
+    sigmas.sort_by(f32::total_cmp);
+    let max = *sigmas.last().context("no training rollouts")?;
+    filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
+    let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
+    write_atomic(out, &bytes)?;
+    let info = ExportInfo {
+        config: cfg,
+        iteration: state.iteration,
+        train_seconds: state.train_seconds,
+        residual_var: residual_var.to_vec(),
+        train_sigma_max: max,
+        train_sigma_median: sigmas[sigmas.len() / 2],
+        sigma_threshold: filter.sigma_threshold,
+        blob_bytes: bytes.len(),
+    };
+    write_atomic(&out.with_extension("json"), serde_json::to_string_pretty(&info)?.as_bytes())?;
+    Ok(info)
+}
+
+fn range(v: &[f64]) -> [f32; 2] {
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    [lo as f32, hi as f32]
+}
+
+/// `F` (row-major, AUG x AUG) fitted over every transition of `ds`, and
+/// the one-step latent residual variance per dimension.
+pub fn global_koopman(model: &Klm, ds: &Dataset, norm: &Norm, cfg: &TrainConfig) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
+    let device = train::device();
+    let t = ds.rollouts.first().context("empty data set")?.xs.len();
+    let mut x = Vec::new();
+    let mut p = Vec::new();
+    for r in &ds.rollouts {
+        anyhow::ensure!(r.xs.len() == t, "rollouts of unequal length");
+        x.extend(r.xs.iter().flat_map(|&v| norm.apply(v)));
+        let m = ds.meta(r.id).context("rollout without truth")?;
+        p.extend([m.length as f32, 0.0]);
+    }
+    let b = ds.rollouts.len();
+    let x = Tensor::<3>::from_data(TensorData::new(x, [b, t, 2]), &device);
+    let p = Tensor::<2>::from_data(TensorData::new(p, [b, 2]), &device);
+    let y = model.enc.forward(x, cfg.activation).detach();
+    let k = fit_koopman(y.clone(), p.clone(), cfg.ridge);
+    let at: Vec<f32> = k.at.clone().into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let ct: Vec<f32> = k.ct.clone().into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let l = LATENT_DIM;
+    // One-step residual.
+    let g_y = y.clone().slice([0..b, 0..t - 1, 0..l]);
+    let pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(k.ct).unsqueeze_dim::<3>(1);
+    let res = (y.slice([0..b, 1..t, 0..l]) - pred).powi_scalar(2).reshape([b * (t - 1), l]).mean_dim(0);
+    let res: Vec<f32> = res.into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let mut residual_var = [0.0f32; LATENT_DIM];
+    for (d, s) in residual_var.iter_mut().zip(&res) {
+        *d = s.max(1e-10);
+    }
+    let mut f = vec![0.0f32; AUG_DIM * AUG_DIM];
+    for i in 0..l {
+        for j in 0..l {
+            f[i * AUG_DIM + j] = at[j * l + i];
+        }
+        f[i * AUG_DIM + l] = ct[i]; // length column; the undeclared parameter's stays 0
+    }
+    for k in l..AUG_DIM {
+        f[k * AUG_DIM + k] = 1.0;
+    }
+    Ok((f, residual_var))
+}

@@ -1,0 +1,242 @@
+//! Training: stratified batches of windows, the KLM losses, Adam, a progress
+//! bar, periodic atomic checkpoints and resume.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device, Tensor, TensorData};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::config::TrainConfig;
+use crate::data::{self, Dataset};
+use crate::io::write_atomic;
+use crate::model::Klm;
+
+/// Per-dimension normalisation fitted on the training set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Norm {
+    /// Mean.
+    pub mu: [f64; 2],
+    /// Standard deviation.
+    pub s: [f64; 2],
+}
+
+impl Norm {
+    /// Fits mean and standard deviation over every observation.
+    pub fn fit(ds: &Dataset) -> Norm {
+        let n = ds.rollouts.iter().map(|r| r.xs.len()).sum::<usize>() as f64;
+        let mut mu = [0.0; 2];
+        let mut s = [0.0; 2];
+        for x in ds.rollouts.iter().flat_map(|r| &r.xs) {
+            for k in 0..2 {
+                mu[k] += x[k] / n;
+            }
+        }
+        for x in ds.rollouts.iter().flat_map(|r| &r.xs) {
+            for k in 0..2 {
+                s[k] += (x[k] - mu[k]).powi(2) / n;
+            }
+        }
+        Norm { mu, s: s.map(f64::sqrt) }
+    }
+    /// Applies it.
+    pub fn apply(&self, x: [f64; 2]) -> [f32; 2] {
+        [((x[0] - self.mu[0]) / self.s[0]) as f32, ((x[1] - self.mu[1]) / self.s[1]) as f32]
+    }
+}
+
+/// Progress of a run, saved with each checkpoint.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RunState {
+    /// Iterations done.
+    pub iteration: usize,
+    /// Training wall time so far, s.
+    pub train_seconds: f64,
+    /// Normalisation of the run.
+    pub norm: Norm,
+    /// Last losses `[total, rec, pred, lin]`.
+    pub last_losses: [f64; 4],
+}
+
+/// Files of a run directory.
+pub struct RunPaths {
+    /// `config.json`.
+    pub config: PathBuf,
+    /// `model.bpk` (burnpack).
+    pub model: PathBuf,
+    /// `optim.bpk` (Adam's state).
+    pub optim: PathBuf,
+    /// `state.json`.
+    pub state: PathBuf,
+    /// `log.csv`.
+    pub log: PathBuf,
+}
+
+impl RunPaths {
+    /// The files of run `dir`.
+    pub fn new(dir: &Path) -> Self {
+        RunPaths {
+            config: dir.join("config.json"),
+            model: dir.join("model.bpk"),
+            optim: dir.join("optim.bpk"),
+            state: dir.join("state.json"),
+            log: dir.join("log.csv"),
+        }
+    }
+}
+
+/// The device all training runs on: flex CPU with autodiff.
+pub fn device() -> Device {
+    Device::flex().autodiff()
+}
+
+/// The training data a config describes (deterministic from its seed).
+pub fn training_data(cfg: &TrainConfig) -> Dataset {
+    data::training_set(cfg.seed, &cfg.lengths, cfg.rollouts_per_length, &[])
+}
+
+/// Normalised windows and their parameters, ready to batch.
+pub struct Batcher {
+    /// `[rollout][t] -> normalised x`.
+    xs: Vec<Vec<[f32; 2]>>,
+    /// Parameters per rollout (`[length, 0]`).
+    ps: Vec<[f32; 2]>,
+    /// Rollout indices per length, for stratified batches.
+    strata: Vec<Vec<usize>>,
+}
+
+impl Batcher {
+    /// From a data set with its truth.
+    pub fn new(ds: &Dataset, norm: &Norm) -> Result<Self> {
+        let mut xs = Vec::new();
+        let mut ps = Vec::new();
+        let mut lengths: Vec<f64> = Vec::new();
+        let mut strata: Vec<Vec<usize>> = Vec::new();
+        for (i, r) in ds.rollouts.iter().enumerate() {
+            let m = ds.meta(r.id).context("training rollout without truth in its sidecar")?;
+            xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
+            ps.push([m.length as f32, 0.0]);
+            match lengths.iter().position(|&l| l == m.length) {
+                Some(k) => strata[k].push(i),
+                None => {
+                    lengths.push(m.length);
+                    strata.push(vec![i]);
+                }
+            }
+        }
+        Ok(Batcher { xs, ps, strata })
+    }
+
+    /// Batch `iteration`'s windows, drawn from a generator seeded with the run's
+    /// seed and the iteration (so a resumed run draws the same batches).
+    pub fn batch(&self, cfg: &TrainConfig, iteration: usize, device: &Device) -> (Tensor<3>, Tensor<2>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let t = cfg.window;
+        let mut x = Vec::with_capacity(cfg.batch * t * 2);
+        let mut p = Vec::with_capacity(cfg.batch * 2);
+        for b in 0..cfg.batch {
+            let stratum = &self.strata[b % self.strata.len()];
+            let r = stratum[rng.random_range(0..stratum.len())];
+            let len = self.xs[r].len();
+            let start = rng.random_range(0..=len - t);
+            for v in &self.xs[r][start..start + t] {
+                x.extend_from_slice(v);
+            }
+            p.extend_from_slice(&self.ps[r]);
+        }
+        (
+            Tensor::from_data(TensorData::new(x, [cfg.batch, t, 2]), device),
+            Tensor::from_data(TensorData::new(p, [cfg.batch, 2]), device),
+        )
+    }
+}
+
+fn save_checkpoint(paths: &RunPaths, model: &Klm, optim_bytes: Bytes, state: &RunState) -> Result<()> {
+    let bytes = model.clone().into_record().into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    write_atomic(&paths.model, &bytes)?;
+    write_atomic(&paths.optim, &optim_bytes)?;
+    write_atomic(&paths.state, serde_json::to_string_pretty(state)?.as_bytes())?;
+    Ok(())
+}
+
+/// Loads the model of a run.
+pub fn load_model(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<Klm> {
+    let bytes = std::fs::read(&paths.model).with_context(|| format!("{}", paths.model.display()))?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes)).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    Klm::new(2, cfg.hidden, estimator::LATENT_DIM, device)
+        .try_load_record(record)
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", paths.model.display()))
+}
+
+/// Trains into `dir`; with `resume`, continues from its last checkpoint
+/// (using the config saved there).
+pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<RunState> {
+    let paths = RunPaths::new(dir);
+    let device = device();
+    let (cfg, mut model, mut optim, mut state) = if resume {
+        let cfg: TrainConfig = serde_json::from_str(&std::fs::read_to_string(&paths.config)?)?;
+        let state: RunState = serde_json::from_str(&std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?)?;
+        let model = load_model(&paths, &cfg, &device)?;
+        let optim = AdamConfig::new()
+            .init()
+            .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        (cfg, model, optim, state)
+    } else {
+        std::fs::create_dir_all(dir)?;
+        write_atomic(&paths.config, serde_json::to_string_pretty(&cfg)?.as_bytes())?;
+        device.seed(cfg.seed);
+        let model = Klm::new(2, cfg.hidden, estimator::LATENT_DIM, &device);
+        let norm = Norm::fit(&training_data(&cfg));
+        let state = RunState { iteration: 0, train_seconds: 0.0, norm, last_losses: [0.0; 4] };
+        write_atomic(&paths.log, b"iteration,total,rec,pred,lin,seconds\n")?;
+        (cfg, model, AdamConfig::new().init(), state)
+    };
+    if cfg.threads > 0 {
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(cfg.threads).build_global();
+    }
+    let ds = training_data(&cfg);
+    let batcher = Batcher::new(&ds, &state.norm)?;
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(cfg.iterations as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_position(state.iteration as u64);
+    let mut log = String::new();
+    let start = Instant::now();
+    let base_seconds = state.train_seconds;
+    while state.iteration < cfg.iterations {
+        let (x, p) = batcher.batch(&cfg, state.iteration, &device);
+        let l = model.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin);
+        let values = [&l.total, &l.rec, &l.pred, &l.lin].map(|t| t.clone().into_scalar::<f32>() as f64);
+        let grads = GradientsParams::from_grads(l.total.backward(), &model);
+        model = optim.step(cfg.lr_at(state.iteration), model, grads);
+        state.iteration += 1;
+        state.last_losses = values;
+        state.train_seconds = base_seconds + start.elapsed().as_secs_f64();
+        log.push_str(&format!(
+            "{},{:.6e},{:.6e},{:.6e},{:.6e},{:.3}\n",
+            state.iteration, values[0], values[1], values[2], values[3], state.train_seconds
+        ));
+        bar.set_message(format!("loss {:.2e} rec {:.2e} pred {:.2e} lin {:.2e}", values[0], values[1], values[2], values[3]));
+        bar.inc(1);
+        if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
+            let mut old = std::fs::read(&paths.log).unwrap_or_default();
+            old.extend_from_slice(log.as_bytes());
+            write_atomic(&paths.log, &old)?;
+            log.clear();
+            let optim_bytes = optim.into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            save_checkpoint(&paths, &model, optim_bytes, &state)?;
+        }
+    }
+    bar.finish();
+    Ok(state)
+}
