@@ -54,7 +54,7 @@ impl Default for TrainConfig {
             rollouts_per_length: 200,
             window: 128,
             batch: 32,
-            iterations: 3000,
+            iterations: 8000,
             lr: 1e-3,
             lr_final: 5e-5,
             ridge: 1e-6,

@@ -225,3 +225,72 @@ pub fn global_koopman(model: &Klm, ds: &Dataset, norm: &Norm, cfg: &TrainConfig)
     }
     Ok((f, residual_var))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::module::Param;
+    use burn::tensor::Device;
+
+    /// A 2 -> 3 layer with every weight distinct: `W[i][o] = 10 (i + 1) + (o + 1)`,
+    /// `b[o] = -(o + 1)`. burn stores it `[d_in, d_out]`; `y = x W + b`.
+    fn asymmetric_linear(d_in: usize, d_out: usize) -> Linear {
+        let device = Device::flex();
+        let w: Vec<f32> = (0..d_in).flat_map(|i| (0..d_out).map(move |o| (10 * (i + 1) + o + 1) as f32)).collect();
+        let b: Vec<f32> = (0..d_out).map(|o| -((o + 1) as f32)).collect();
+        Linear {
+            weight: Param::from_tensor(Tensor::from_data(TensorData::new(w, [d_in, d_out]), &device)),
+            bias: Some(Param::from_tensor(Tensor::from_data(TensorData::new(b, [d_out]), &device))),
+        }
+    }
+
+    #[test]
+    fn linear_lands_output_major() {
+        let (d_in, d_out, w, b) = linear_to_blob(&asymmetric_linear(2, 3));
+        assert_eq!((d_in, d_out), (2, 3));
+        let w: Vec<f32> = F32s(&w).iter().collect();
+        let b: Vec<f32> = F32s(&b).iter().collect();
+        // Golden, from the formula above: row o holds W[0][o], W[1][o].
+        assert_eq!(w, [11.0, 21.0, 12.0, 22.0, 13.0, 23.0]);
+        assert_eq!(b, [-1.0, -2.0, -3.0]);
+    }
+
+    #[test]
+    fn blob_round_trips_and_computes_what_burn_computes() {
+        let device = Device::flex();
+        device.seed(3);
+        let mut enc = Mlp::new(2, estimator::HIDDEN_DIM, LATENT_DIM, &device);
+        enc.l0 = asymmetric_linear(2, estimator::HIDDEN_DIM); // large but exact
+        enc.l0.weight = enc.l0.weight.map(|w| w.mul_scalar(0.01));
+        let dec = Mlp::new(LATENT_DIM, estimator::HIDDEN_DIM, 2, &device);
+        let f: Vec<f32> = (0..AUG_DIM * AUG_DIM).map(|k| (k as f32 * 0.37).sin()).collect();
+        let parts = BlobParts::new(&enc, &dec, &f);
+        let cfg = TrainConfig::default();
+        let norm = Norm { mu: [0.5, -0.25], s: [2.0, 4.0] };
+        let filter = FilterSpec { q: [0.1; AUG_DIM], r: [0.2; LATENT_DIM], prior_mean: [0.0; PARAM_DIM], prior_var: [1.0; AUG_DIM], burn_in: 32, sigma_threshold: 0.05 };
+        let params = [
+            ParamSpec { name: "length", declared: true, train_range: [2.0, 5.0] },
+            ParamSpec { name: "none", declared: false, train_range: [0.0, 0.0] },
+        ];
+        let blob = parts.blob(&norm, &cfg, filter, params);
+        let bytes = blob_bytes(&blob).unwrap();
+        let back = Model::from_bytes(&bytes).unwrap();
+        // Exactly the same numbers come back: the blob stores f32 bits.
+        assert_eq!(*back.blob(), blob);
+        for (i, j) in [(0, 0), (3, 17), (17, 2)] {
+            assert_eq!(back.f(i, j), f[i * AUG_DIM + j]);
+        }
+        // And the estimator's encoder computes burn's forward pass.
+        let x = [0.3f32, -1.2];
+        let burn_y: Vec<f32> = enc
+            .forward(Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device), cfg.activation)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
+        let y = back.encode(&x);
+        for (a, b) in y.iter().zip(&burn_y) {
+            // Same f32 sums in another order: relative 1e-5 of the magnitude.
+            assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{a} vs {b}");
+        }
+    }
+}

@@ -188,6 +188,16 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             .init()
             .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        // A kill between the log's append and the checkpoint leaves log lines
+        // past the checkpoint: drop them, they will be trained again.
+        let log = std::fs::read_to_string(&paths.log).unwrap_or_default();
+        let kept: String = log
+            .lines()
+            .enumerate()
+            .filter(|(i, l)| *i == 0 || l.split(',').next().and_then(|v| v.parse::<usize>().ok()).is_some_and(|it| it <= state.iteration))
+            .map(|(_, l)| format!("{l}\n"))
+            .collect();
+        write_atomic(&paths.log, kept.as_bytes())?;
         (cfg, model, optim, state)
     } else {
         std::fs::create_dir_all(dir)?;

@@ -1,0 +1,87 @@
+//! The `koopman` command line, run as a user runs it.
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn koopman() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_koopman"))
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    assert!(out.status.success(), "{:?}: {}", cmd, String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn generate_is_deterministic_in_its_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let generate = |name: &str, seed: &str| {
+        run_ok(koopman().args(["generate", "--seed", seed, "--rollouts", "20", "--out"]).arg(dir.path().join(name)));
+    };
+    generate("a", "7");
+    generate("b", "7");
+    generate("c", "8");
+    for f in ["train.csv", "train.json", "test.csv", "test.json"] {
+        let a = std::fs::read(dir.path().join("a").join(f)).unwrap();
+        let b = std::fs::read(dir.path().join("b").join(f)).unwrap();
+        assert!(!a.is_empty());
+        assert_eq!(a, b, "{f} differs between two runs with seed 7");
+    }
+    let a = std::fs::read(dir.path().join("a/train.csv")).unwrap();
+    let c = std::fs::read(dir.path().join("c/train.csv")).unwrap();
+    assert_ne!(a, c, "seeds 7 and 8 gave the same training set");
+    let text = String::from_utf8(a).unwrap();
+    assert!(text.starts_with("rollout,t,theta,theta_dot\n"));
+    assert_eq!(text.lines().count(), 1 + 40 * 128);
+}
+
+#[test]
+fn an_effect_changes_the_data() {
+    let dir = tempfile::tempdir().unwrap();
+    run_ok(koopman().args(["generate", "--rollouts", "2", "--effect", "viscous:0.2", "--out"]).arg(dir.path()));
+    let side = std::fs::read_to_string(dir.path().join("test.json")).unwrap();
+    assert!(side.contains("\"viscous\": 0.2"), "{side}");
+    let out = koopman().args(["generate", "--effect", "nonsense:1", "--out"]).arg(dir.path()).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown"));
+}
+
+fn iteration(run: &Path) -> usize {
+    std::fs::read_to_string(run.join("state.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+        .and_then(|v| v["iteration"].as_u64())
+        .unwrap_or(0) as usize
+}
+
+#[test]
+fn a_killed_run_resumes_from_its_checkpoint_and_exports() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let cfg = dir.path().join("cfg.json");
+    std::fs::write(&cfg, r#"{"iterations": 400, "batch": 4, "window": 16, "rollouts_per_length": 4, "checkpoint_every": 5, "hidden": 128}"#).unwrap();
+    let mut child = koopman().args(["train", "--quiet", "--run"]).arg(&run).arg("--config").arg(&cfg).spawn().unwrap();
+    let start = Instant::now();
+    while iteration(&run) < 10 && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let at_kill = iteration(&run);
+    assert!((10..400).contains(&at_kill), "killed at {at_kill}");
+    let out = run_ok(koopman().args(["train", "--quiet", "--resume", "--run"]).arg(&run));
+    assert!(out.contains("trained 400 iterations"), "{out}");
+    assert_eq!(iteration(&run), 400);
+    // The log has one line per iteration up to the last checkpoint before the
+    // kill, then every iteration after it: no gap, no repeat.
+    let log = std::fs::read_to_string(run.join("log.csv")).unwrap();
+    let its: Vec<usize> = log.lines().skip(1).map(|l| l.split(',').next().unwrap().parse().unwrap()).collect();
+    assert_eq!(its, (1..=400).collect::<Vec<_>>());
+    let blob = dir.path().join("w.kkf");
+    run_ok(koopman().arg("export").arg(&run).arg("--out").arg(&blob));
+    let bytes = std::fs::read(&blob).unwrap();
+    estimator::Model::from_bytes(&bytes).unwrap();
+    assert!(blob.with_extension("json").exists());
+}
