@@ -277,8 +277,16 @@ impl<'a> Blob<'a> {
         if !b.norm_s.iter().all(|v| v.is_finite() && *v > 0.0) {
             return Err(Error::BlobNonFinite);
         }
-        let enc = [(STATE_DIM, HIDDEN_DIM), (HIDDEN_DIM, HIDDEN_DIM), (HIDDEN_DIM, LATENT_DIM)];
-        let dec = [(LATENT_DIM, HIDDEN_DIM), (HIDDEN_DIM, HIDDEN_DIM), (HIDDEN_DIM, STATE_DIM)];
+        let enc = [
+            (STATE_DIM, HIDDEN_DIM),
+            (HIDDEN_DIM, HIDDEN_DIM),
+            (HIDDEN_DIM, LATENT_DIM),
+        ];
+        let dec = [
+            (LATENT_DIM, HIDDEN_DIM),
+            (HIDDEN_DIM, HIDDEN_DIM),
+            (HIDDEN_DIM, STATE_DIM),
+        ];
         for (layer, (i, o)) in b.encoder.iter().zip(enc) {
             layer.check(i, o)?;
         }

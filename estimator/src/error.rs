@@ -51,7 +51,9 @@ impl fmt::Display for Error {
             Error::BlobTrailingBytes => "blob: trailing bytes after the end",
             Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
             Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
-            Error::FilterNotPositiveDefinite => "filter: innovation covariance not positive definite",
+            Error::FilterNotPositiveDefinite => {
+                "filter: innovation covariance not positive definite"
+            }
             Error::InputBadLength => "input: buffer has the wrong length",
             Error::FilterNonFinite => "filter: update produced a non-finite state",
         };

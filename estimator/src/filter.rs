@@ -145,7 +145,10 @@ impl<'m> Estimator<'m> {
     /// refused with [`Error::NonFiniteInput`] and the state is unchanged; so
     /// is every other error.
     pub fn step(&mut self, raw: &State) -> Result<StepOutput, Error> {
-        if !raw.iter().all(|v| v.is_finite() && v.abs() <= MAX_ABS_INPUT) {
+        if !raw
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_ABS_INPUT)
+        {
             return Err(Error::NonFiniteInput);
         }
         let z = self.model.encode(&self.model.normalise(raw));
@@ -164,10 +167,11 @@ impl<'m> Estimator<'m> {
         }
         let (g, p) = self.predict_update(&z)?;
         let mut correction = [0.0; PARAM_DIM];
-        for (c, (new, old)) in correction
-            .iter_mut()
-            .zip(g.iter().skip(LATENT_DIM).zip(self.g.iter().skip(LATENT_DIM)))
-        {
+        for (c, (new, old)) in correction.iter_mut().zip(
+            g.iter()
+                .skip(LATENT_DIM)
+                .zip(self.g.iter().skip(LATENT_DIM)),
+        ) {
             *c = new - old;
         }
         let t = self.t.saturating_add(1);
@@ -215,7 +219,11 @@ impl<'m> Estimator<'m> {
         let mut param_std = [0.0; PARAM_DIM];
         for (k, (m, s)) in params.iter_mut().zip(param_std.iter_mut()).enumerate() {
             *m = self.g.get(LATENT_DIM + k).copied().unwrap_or(0.0);
-            let v = self.p.get((LATENT_DIM + k, LATENT_DIM + k)).copied().unwrap_or(0.0);
+            let v = self
+                .p
+                .get((LATENT_DIM + k, LATENT_DIM + k))
+                .copied()
+                .unwrap_or(0.0);
             *s = libm::sqrtf(v.max(0.0));
         }
         let sigma = self.spread.sigma();
@@ -228,7 +236,14 @@ impl<'m> Estimator<'m> {
         } else {
             Trust::Untrusted
         };
-        StepOutput { t: self.t, params, param_std, correction, sigma, trust }
+        StepOutput {
+            t: self.t,
+            params,
+            param_std,
+            correction,
+            sigma,
+            trust,
+        }
     }
 }
 

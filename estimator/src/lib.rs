@@ -46,3 +46,8 @@ pub type State = [f32; STATE_DIM];
 pub type Latent = [f32; LATENT_DIM];
 /// An augmented state `[y; p]` as a plain array.
 pub type Aug = [f32; AUG_DIM];
+
+/// The README's examples, compiled and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct ReadmeDoctests;

@@ -37,7 +37,9 @@ impl<'a> Model<'a> {
     /// Reads a blob (see [`Blob::from_bytes`] for every check made); the
     /// weights are borrowed from `bytes`, not copied.
     pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
-        Ok(Model { blob: Blob::from_bytes(bytes)? })
+        Ok(Model {
+            blob: Blob::from_bytes(bytes)?,
+        })
     }
 
     /// The decoded blob.

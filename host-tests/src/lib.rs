@@ -1,0 +1,15 @@
+//! Host-side tests of the `estimator` crate against the trainer's output;
+//! the tests are in `tests/`. This library only locates the shipped files.
+
+use std::path::PathBuf;
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The shipped weights blob's bytes.
+pub fn shipped_blob() -> Vec<u8> {
+    let p = root().join("weights/pendulum.kkf");
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}

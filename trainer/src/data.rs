@@ -85,17 +85,29 @@ fn make(set: &str, seed: u64, specs: Vec<(f64, f64)>, effects: &[Effect]) -> Dat
         p.effects = effects.to_vec();
         let xs = p.rollout([theta0, 0.0], ROLLOUT_LEN, DT);
         let t = (0..ROLLOUT_LEN).map(|k| k as f64 * DT).collect();
-        rollouts.push(Rollout { id: id as u32, t, xs });
+        rollouts.push(Rollout {
+            id: id as u32,
+            t,
+            xs,
+        });
         metas.push(RolloutMeta {
             rollout: id as u32,
             length,
             theta0,
-            effects: effects.iter().map(|e| (e.name().to_string(), e.coefficient())).collect(),
+            effects: effects
+                .iter()
+                .map(|e| (e.name().to_string(), e.coefficient()))
+                .collect(),
         });
     }
     Dataset {
         rollouts,
-        sidecar: Sidecar { set: set.into(), seed: Some(seed), dt: DT, rollouts: metas },
+        sidecar: Sidecar {
+            set: set.into(),
+            seed: Some(seed),
+            dt: DT,
+            rollouts: metas,
+        },
     }
 }
 
@@ -146,7 +158,10 @@ pub fn write(ds: &Dataset, dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(dir)?;
     let csv = dir.join(format!("{name}.csv"));
     write_atomic(&csv, to_csv(ds).as_bytes())?;
-    write_atomic(&sidecar_path(&csv), serde_json::to_string_pretty(&ds.sidecar)?.as_bytes())?;
+    write_atomic(
+        &sidecar_path(&csv),
+        serde_json::to_string_pretty(&ds.sidecar)?.as_bytes(),
+    )?;
     Ok(csv)
 }
 
@@ -176,14 +191,24 @@ impl std::error::Error for CsvError {}
 /// Parses the project's CSV. Rows of one rollout must be contiguous with
 /// increasing `t`; every value finite; each rollout at least `min_rows`.
 pub fn parse_csv(path: &Path, text: &str, min_rows: usize) -> Result<Vec<Rollout>, CsvError> {
-    let err = |line: usize, problem: String| CsvError { path: path.to_path_buf(), line, problem };
+    let err = |line: usize, problem: String| CsvError {
+        path: path.to_path_buf(),
+        line,
+        problem,
+    };
     let mut lines = text.lines().enumerate();
     let Some((_, header)) = lines.next() else {
-        return Err(err(0, "empty file (expected header `rollout,t,theta,theta_dot`)".into()));
+        return Err(err(
+            0,
+            "empty file (expected header `rollout,t,theta,theta_dot`)".into(),
+        ));
     };
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
     if cols != ["rollout", "t", "theta", "theta_dot"] {
-        return Err(err(1, format!("header is {header:?}, expected {CSV_HEADER:?}")));
+        return Err(err(
+            1,
+            format!("header is {header:?}, expected {CSV_HEADER:?}"),
+        ));
     }
     let mut out: Vec<Rollout> = Vec::new();
     for (i, line) in lines {
@@ -195,7 +220,9 @@ pub fn parse_csv(path: &Path, text: &str, min_rows: usize) -> Result<Vec<Rollout
         if f.len() != 4 {
             return Err(err(n, format!("expected 4 columns, found {}", f.len())));
         }
-        let id: u32 = f[0].parse().map_err(|_| err(n, format!("rollout {:?} is not an id", f[0])))?;
+        let id: u32 = f[0]
+            .parse()
+            .map_err(|_| err(n, format!("rollout {:?} is not an id", f[0])))?;
         let mut v = [0.0f64; 3];
         for (k, name) in ["t", "theta", "theta_dot"].iter().enumerate() {
             let x: f64 = f[k + 1]
@@ -211,16 +238,26 @@ pub fn parse_csv(path: &Path, text: &str, min_rows: usize) -> Result<Vec<Rollout
                 if let Some(&last) = r.t.last()
                     && v[0] <= last
                 {
-                    return Err(err(n, format!("t {} does not increase (previous {last})", v[0])));
+                    return Err(err(
+                        n,
+                        format!("t {} does not increase (previous {last})", v[0]),
+                    ));
                 }
                 r.t.push(v[0]);
                 r.xs.push([v[1], v[2]]);
             }
             _ => {
                 if out.iter().any(|r| r.id == id) {
-                    return Err(err(n, format!("rollout {id} appears again after another rollout")));
+                    return Err(err(
+                        n,
+                        format!("rollout {id} appears again after another rollout"),
+                    ));
                 }
-                out.push(Rollout { id, t: vec![v[0]], xs: vec![[v[1], v[2]]] });
+                out.push(Rollout {
+                    id,
+                    t: vec![v[0]],
+                    xs: vec![[v[1], v[2]]],
+                });
             }
         }
     }
@@ -228,7 +265,14 @@ pub fn parse_csv(path: &Path, text: &str, min_rows: usize) -> Result<Vec<Rollout
         return Err(err(0, "no data rows".into()));
     }
     if let Some(r) = out.iter().find(|r| r.xs.len() < min_rows) {
-        return Err(err(0, format!("rollout {} has {} rows, at least {min_rows} needed", r.id, r.xs.len())));
+        return Err(err(
+            0,
+            format!(
+                "rollout {} has {} rows, at least {min_rows} needed",
+                r.id,
+                r.xs.len()
+            ),
+        ));
     }
     Ok(out)
 }
@@ -247,7 +291,12 @@ pub fn read(path: &Path, min_rows: usize) -> anyhow::Result<Dataset> {
             .first()
             .and_then(|r| r.t.get(1).zip(r.t.first()).map(|(b, a)| b - a))
             .unwrap_or(DT);
-        Sidecar { set: "measured".into(), seed: None, dt, rollouts: Vec::new() }
+        Sidecar {
+            set: "measured".into(),
+            seed: None,
+            dt,
+            rollouts: Vec::new(),
+        }
     };
     Ok(Dataset { rollouts, sidecar })
 }
@@ -273,9 +322,21 @@ mod tests {
             ("", 0, "empty"),
             ("rollout,t,theta\n", 1, "header"),
             ("rollout,t,theta,theta_dot\n0,0,1\n", 2, "columns"),
-            ("rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,abc,2\n", 3, "not a number"),
-            ("rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,NaN,2\n", 3, "finite"),
-            ("rollout,t,theta,theta_dot\n0,0,1,2\n0,0.1,1,2\n0,0.05,1,2\n", 4, "increase"),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,abc,2\n",
+                3,
+                "not a number",
+            ),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,NaN,2\n",
+                3,
+                "finite",
+            ),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.1,1,2\n0,0.05,1,2\n",
+                4,
+                "increase",
+            ),
             ("rollout,t,theta,theta_dot\n0,0,1,2\n", 0, "rows"),
         ];
         for (text, line, word) in cases {

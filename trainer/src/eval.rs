@@ -53,7 +53,9 @@ pub struct LengthScore {
 pub fn sim_mse(model: &Model<'_>, xs: &[[f64; 2]], params: [f32; 2]) -> Result<f64> {
     let x0 = [xs[0][0] as f32, xs[0][1] as f32];
     let mut out = vec![[0.0f32; 2]; xs.len() - 1];
-    model.simulate(&x0, &params, &mut out).map_err(|e| anyhow::anyhow!("{e}"))?;
+    model
+        .simulate(&x0, &params, &mut out)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut se = 0.0;
     for (sim, truth) in out.iter().zip(&xs[1..]) {
         let a = model.normalise(sim);
@@ -61,6 +63,19 @@ pub fn sim_mse(model: &Model<'_>, xs: &[[f64; 2]], params: [f32; 2]) -> Result<f
         se += ((a[0] - b[0]) as f64).powi(2) + ((a[1] - b[1]) as f64).powi(2);
     }
     Ok(se / (2.0 * out.len() as f64))
+}
+
+/// Runs a fresh estimator over `xs` and returns its last output.
+pub fn estimate(
+    model: &Model<'_>,
+    xs: &[[f64; 2]],
+) -> Result<estimator::StepOutput, estimator::Error> {
+    let mut est = Estimator::new(model);
+    let mut last = Err(estimator::Error::InputBadLength);
+    for x in xs {
+        last = Ok(est.step(&[x[0] as f32, x[1] as f32])?);
+    }
+    last
 }
 
 /// Scores every rollout of a test set.
@@ -72,7 +87,10 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
         let mut est = Estimator::new(model);
         let mut last = None;
         for x in r.xs.iter().take(ESTIMATION_STEPS) {
-            last = Some(est.step(&[x[0] as f32, x[1] as f32]).map_err(|e| anyhow::anyhow!("{e}"))?);
+            last = Some(
+                est.step(&[x[0] as f32, x[1] as f32])
+                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+            );
         }
         let last = last.context("empty rollout")?;
         let mse_klm = sim_mse(model, &r.xs, last.params)?;
@@ -118,7 +136,9 @@ pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
 
 /// A markdown table of per-length scores.
 pub fn table(rows: &[LengthScore]) -> String {
-    let mut s = String::from("| L | MSE (true L) | KLM MSE | L estimate | KLM sigma | untrusted |\n| --- | --- | --- | --- | --- | --- |\n");
+    let mut s = String::from(
+        "| L | MSE (true L) | KLM MSE | L estimate | KLM sigma | untrusted |\n| --- | --- | --- | --- | --- | --- |\n",
+    );
     for r in rows {
         s.push_str(&format!(
             "| {} | {:.4} | {:.4} | {:.3} | {:.4} | {}/{} |\n",

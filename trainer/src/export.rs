@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use burn::nn::Linear;
 use burn::tensor::{Tensor, TensorData};
 use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, Layer, ParamSpec};
-use estimator::{AUG_DIM, Estimator, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
+use estimator::{AUG_DIM, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
 use serde::Serialize;
 
 use crate::config::TrainConfig;
@@ -36,7 +36,11 @@ pub fn le_bytes(v: &[f32]) -> Vec<u8> {
 pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
     let w = l.weight.val();
     let [d_in, d_out] = w.dims();
-    let w: Vec<f32> = w.into_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default();
+    let w: Vec<f32> = w
+        .into_data()
+        .convert::<f32>()
+        .try_to_vec::<f32>()
+        .unwrap_or_default();
     let mut out = vec![0.0f32; d_in * d_out];
     for i in 0..d_in {
         for o in 0..d_out {
@@ -44,7 +48,12 @@ pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
         }
     }
     let b: Vec<f32> = match &l.bias {
-        Some(b) => b.val().into_data().convert::<f32>().try_to_vec::<f32>().unwrap_or_default(),
+        Some(b) => b
+            .val()
+            .into_data()
+            .convert::<f32>()
+            .try_to_vec::<f32>()
+            .unwrap_or_default(),
         None => vec![0.0; d_out],
     };
     (d_in as u16, d_out as u16, le_bytes(&out), le_bytes(&b))
@@ -70,8 +79,19 @@ impl BlobParts {
     }
 
     /// The blob, borrowing from `self`.
-    pub fn blob<'a>(&'a self, norm: &Norm, cfg: &TrainConfig, filter: FilterSpec, params: [ParamSpec<'a>; PARAM_DIM]) -> Blob<'a> {
-        let layer = |(i, o, w, b): &'a (u16, u16, Vec<u8>, Vec<u8>)| Layer { d_in: *i, d_out: *o, weight: F32s(w), bias: F32s(b) };
+    pub fn blob<'a>(
+        &'a self,
+        norm: &Norm,
+        cfg: &TrainConfig,
+        filter: FilterSpec,
+        params: [ParamSpec<'a>; PARAM_DIM],
+    ) -> Blob<'a> {
+        let layer = |(i, o, w, b): &'a (u16, u16, Vec<u8>, Vec<u8>)| Layer {
+            d_in: *i,
+            d_out: *o,
+            weight: F32s(w),
+            bias: F32s(b),
+        };
         Blob {
             header: Header::CURRENT,
             body: Body {
@@ -80,8 +100,16 @@ impl BlobParts {
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),
                 params,
-                encoder: [layer(&self.enc[0]), layer(&self.enc[1]), layer(&self.enc[2])],
-                decoder: [layer(&self.dec[0]), layer(&self.dec[1]), layer(&self.dec[2])],
+                encoder: [
+                    layer(&self.enc[0]),
+                    layer(&self.enc[1]),
+                    layer(&self.enc[2]),
+                ],
+                decoder: [
+                    layer(&self.dec[0]),
+                    layer(&self.dec[1]),
+                    layer(&self.dec[2]),
+                ],
                 f: F32s(&self.f),
                 b: F32s(&self.b),
                 filter,
@@ -93,7 +121,10 @@ impl BlobParts {
 /// Serialises a blob with its CRC.
 pub fn blob_bytes(blob: &Blob<'_>) -> Result<Vec<u8>> {
     let mut buf = vec![0u8; 1 << 20];
-    let n = blob.to_slice(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?.len();
+    let n = blob
+        .to_slice(&mut buf)
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .len();
     buf.truncate(n);
     Ok(buf)
 }
@@ -121,18 +152,18 @@ pub struct ExportInfo {
 
 /// Sigma of the length corrections over the protocol's estimation window.
 pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
-    let mut est = Estimator::new(model);
-    let mut last = None;
-    for x in xs.iter().take(ESTIMATION_STEPS) {
-        last = Some(est.step(&[x[0] as f32, x[1] as f32]).map_err(|e| anyhow::anyhow!("{e}"))?);
-    }
-    Ok(last.context("empty rollout")?.sigma[0])
+    let n = ESTIMATION_STEPS.min(xs.len());
+    let out = crate::eval::estimate(model, &xs[..n]).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(out.sigma[0])
 }
 
 /// Exports run `dir` to `out`.
 pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
     let paths = RunPaths::new(dir);
-    let cfg: TrainConfig = serde_json::from_str(&std::fs::read_to_string(&paths.config).with_context(|| format!("{}", paths.config.display()))?)?;
+    let cfg: TrainConfig = serde_json::from_str(
+        &std::fs::read_to_string(&paths.config)
+            .with_context(|| format!("{}", paths.config.display()))?,
+    )?;
     let state: RunState = serde_json::from_str(&std::fs::read_to_string(&paths.state)?)?;
     let device = train::device();
     let model = train::load_model(&paths, &cfg, &device)?;
@@ -140,8 +171,16 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
     let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
     let parts = BlobParts::new(&model.enc, &model.dec, &f);
     let params = [
-        ParamSpec { name: "length", declared: true, train_range: range(&cfg.lengths) },
-        ParamSpec { name: "none", declared: false, train_range: [0.0, 0.0] },
+        ParamSpec {
+            name: "length",
+            declared: true,
+            train_range: range(&cfg.lengths),
+        },
+        ParamSpec {
+            name: "none",
+            declared: false,
+            train_range: [0.0, 0.0],
+        },
     ];
     let mut q = [0.0f32; AUG_DIM];
     let mut r = [0.0f32; LATENT_DIM];
@@ -152,16 +191,28 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
         prior_var[k] = residual_var[k];
     }
     prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
-    let mut filter = FilterSpec { q, r, prior_mean: [0.0; PARAM_DIM], prior_var, burn_in: BURN_IN, sigma_threshold: 1.0 };
+    let mut filter = FilterSpec {
+        q,
+        r,
+        prior_mean: [0.0; PARAM_DIM],
+        prior_var,
+        burn_in: BURN_IN,
+        sigma_threshold: 1.0,
+    };
     // Calibrate: sigma over every training rollout's estimation window.
     let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
     let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut sigmas = ds.rollouts.iter().map(|r| window_sigma(&m, &r.xs)).collect::<Result<Vec<_>>>()?;
+    let mut sigmas = ds
+        .rollouts
+        .iter()
+        .map(|r| window_sigma(&m, &r.xs))
+        .collect::<Result<Vec<_>>>()?;
     sigmas.sort_by(f32::total_cmp);
     let max = *sigmas.last().context("no training rollouts")?;
     filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
     let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
-    Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
+    Model::from_bytes(&bytes)
+        .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
     write_atomic(out, &bytes)?;
     let info = ExportInfo {
         config: cfg,
@@ -173,7 +224,10 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
         sigma_threshold: filter.sigma_threshold,
         blob_bytes: bytes.len(),
     };
-    write_atomic(&out.with_extension("json"), serde_json::to_string_pretty(&info)?.as_bytes())?;
+    write_atomic(
+        &out.with_extension("json"),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )?;
     Ok(info)
 }
 
@@ -185,7 +239,12 @@ fn range(v: &[f64]) -> [f32; 2] {
 
 /// `F` (row-major, AUG x AUG) fitted over every transition of `ds`, and
 /// the one-step latent residual variance per dimension.
-pub fn global_koopman(model: &Klm, ds: &Dataset, norm: &Norm, cfg: &TrainConfig) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
+pub fn global_koopman(
+    model: &Klm,
+    ds: &Dataset,
+    norm: &Norm,
+    cfg: &TrainConfig,
+) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
     let device = train::device();
     let t = ds.rollouts.first().context("empty data set")?.xs.len();
     let mut x = Vec::new();
@@ -201,14 +260,28 @@ pub fn global_koopman(model: &Klm, ds: &Dataset, norm: &Norm, cfg: &TrainConfig)
     let p = Tensor::<2>::from_data(TensorData::new(p, [b, 2]), &device);
     let y = model.enc.forward(x, cfg.activation).detach();
     let k = fit_koopman(y.clone(), p.clone(), cfg.ridge);
-    let at: Vec<f32> = k.at.clone().into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let ct: Vec<f32> = k.ct.clone().into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let at: Vec<f32> =
+        k.at.clone()
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let ct: Vec<f32> =
+        k.ct.clone()
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let l = LATENT_DIM;
     // One-step residual.
     let g_y = y.clone().slice([0..b, 0..t - 1, 0..l]);
     let pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(k.ct).unsqueeze_dim::<3>(1);
-    let res = (y.slice([0..b, 1..t, 0..l]) - pred).powi_scalar(2).reshape([b * (t - 1), l]).mean_dim(0);
-    let res: Vec<f32> = res.into_data().try_to_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let res = (y.slice([0..b, 1..t, 0..l]) - pred)
+        .powi_scalar(2)
+        .reshape([b * (t - 1), l])
+        .mean_dim(0);
+    let res: Vec<f32> = res
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let mut residual_var = [0.0f32; LATENT_DIM];
     for (d, s) in residual_var.iter_mut().zip(&res) {
         *d = s.max(1e-10);
@@ -236,11 +309,19 @@ mod tests {
     /// `b[o] = -(o + 1)`. burn stores it `[d_in, d_out]`; `y = x W + b`.
     fn asymmetric_linear(d_in: usize, d_out: usize) -> Linear {
         let device = Device::flex();
-        let w: Vec<f32> = (0..d_in).flat_map(|i| (0..d_out).map(move |o| (10 * (i + 1) + o + 1) as f32)).collect();
+        let w: Vec<f32> = (0..d_in)
+            .flat_map(|i| (0..d_out).map(move |o| (10 * (i + 1) + o + 1) as f32))
+            .collect();
         let b: Vec<f32> = (0..d_out).map(|o| -((o + 1) as f32)).collect();
         Linear {
-            weight: Param::from_tensor(Tensor::from_data(TensorData::new(w, [d_in, d_out]), &device)),
-            bias: Some(Param::from_tensor(Tensor::from_data(TensorData::new(b, [d_out]), &device))),
+            weight: Param::from_tensor(Tensor::from_data(
+                TensorData::new(w, [d_in, d_out]),
+                &device,
+            )),
+            bias: Some(Param::from_tensor(Tensor::from_data(
+                TensorData::new(b, [d_out]),
+                &device,
+            ))),
         }
     }
 
@@ -263,14 +344,34 @@ mod tests {
         enc.l0 = asymmetric_linear(2, estimator::HIDDEN_DIM); // large but exact
         enc.l0.weight = enc.l0.weight.map(|w| w.mul_scalar(0.01));
         let dec = Mlp::new(LATENT_DIM, estimator::HIDDEN_DIM, 2, &device);
-        let f: Vec<f32> = (0..AUG_DIM * AUG_DIM).map(|k| (k as f32 * 0.37).sin()).collect();
+        let f: Vec<f32> = (0..AUG_DIM * AUG_DIM)
+            .map(|k| (k as f32 * 0.37).sin())
+            .collect();
         let parts = BlobParts::new(&enc, &dec, &f);
         let cfg = TrainConfig::default();
-        let norm = Norm { mu: [0.5, -0.25], s: [2.0, 4.0] };
-        let filter = FilterSpec { q: [0.1; AUG_DIM], r: [0.2; LATENT_DIM], prior_mean: [0.0; PARAM_DIM], prior_var: [1.0; AUG_DIM], burn_in: 32, sigma_threshold: 0.05 };
+        let norm = Norm {
+            mu: [0.5, -0.25],
+            s: [2.0, 4.0],
+        };
+        let filter = FilterSpec {
+            q: [0.1; AUG_DIM],
+            r: [0.2; LATENT_DIM],
+            prior_mean: [0.0; PARAM_DIM],
+            prior_var: [1.0; AUG_DIM],
+            burn_in: 32,
+            sigma_threshold: 0.05,
+        };
         let params = [
-            ParamSpec { name: "length", declared: true, train_range: [2.0, 5.0] },
-            ParamSpec { name: "none", declared: false, train_range: [0.0, 0.0] },
+            ParamSpec {
+                name: "length",
+                declared: true,
+                train_range: [2.0, 5.0],
+            },
+            ParamSpec {
+                name: "none",
+                declared: false,
+                train_range: [0.0, 0.0],
+            },
         ];
         let blob = parts.blob(&norm, &cfg, filter, params);
         let bytes = blob_bytes(&blob).unwrap();
@@ -283,7 +384,10 @@ mod tests {
         // And the estimator's encoder computes burn's forward pass.
         let x = [0.3f32, -1.2];
         let burn_y: Vec<f32> = enc
-            .forward(Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device), cfg.activation)
+            .forward(
+                Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device),
+                cfg.activation,
+            )
             .into_data()
             .try_to_vec::<f32>()
             .unwrap();

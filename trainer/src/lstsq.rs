@@ -19,7 +19,9 @@ pub fn ridge(g: Tensor<2>, y: Tensor<2>, ridge: f64) -> Tensor<2> {
     let device = a.device();
     let eye = Tensor::<2>::eye(n, &device);
     // The ridge's scale is treated as a constant (no gradient through it).
-    let trace = (a.clone().detach() * eye.clone()).sum().into_scalar::<f32>() as f64;
+    let trace = (a.clone().detach() * eye.clone())
+        .sum()
+        .into_scalar::<f32>() as f64;
     let lambda = ridge * trace / n as f64 + 1e-12;
     let a = a + eye.clone().mul_scalar(lambda);
     solve_spd(a, b)
@@ -51,7 +53,9 @@ mod tests {
 
     /// Deterministic, well-conditioned test data (no RNG: a fixed formula).
     fn data(rows: usize, cols: usize, phase: f32) -> Vec<f32> {
-        (0..rows * cols).map(|k| ((k as f32) * 0.731 + phase).sin() + 0.1 * (k % cols) as f32).collect()
+        (0..rows * cols)
+            .map(|k| ((k as f32) * 0.731 + phase).sin() + 0.1 * (k % cols) as f32)
+            .collect()
     }
 
     #[test]
@@ -75,7 +79,12 @@ mod tests {
             for j in 0..m {
                 // f32 elimination on a matrix of condition ~1e2: 1e-4 absolute is
                 // ~10x the error we see, far below any effect on training.
-                assert!((x[i * m + j] as f64 - xr[(i, j)]).abs() < 1e-4, "{i},{j}: {} vs {}", x[i * m + j], xr[(i, j)]);
+                assert!(
+                    (x[i * m + j] as f64 - xr[(i, j)]).abs() < 1e-4,
+                    "{i},{j}: {} vs {}",
+                    x[i * m + j],
+                    xr[(i, j)]
+                );
             }
         }
     }
@@ -88,16 +97,23 @@ mod tests {
         let y = data(rows, m, 2.2);
         let w = data(n, m, 0.5); // weights of a scalar objective f(G) = sum(W * X(G))
         let f = |g: &[f32]| -> f64 {
-            let gt = Tensor::<2>::from_data(TensorData::new(g.to_vec(), [rows, n]), &Device::flex());
+            let gt =
+                Tensor::<2>::from_data(TensorData::new(g.to_vec(), [rows, n]), &Device::flex());
             let yt = Tensor::<2>::from_data(TensorData::new(y.clone(), [rows, m]), &Device::flex());
             let wt = Tensor::<2>::from_data(TensorData::new(w.clone(), [n, m]), &Device::flex());
             (ridge(gt, yt, 1e-2) * wt).sum().into_scalar::<f32>() as f64
         };
-        let gt = Tensor::<2>::from_data(TensorData::new(g0.clone(), [rows, n]), &device).require_grad();
+        let gt =
+            Tensor::<2>::from_data(TensorData::new(g0.clone(), [rows, n]), &device).require_grad();
         let yt = Tensor::<2>::from_data(TensorData::new(y.clone(), [rows, m]), &device);
         let wt = Tensor::<2>::from_data(TensorData::new(w.clone(), [n, m]), &device);
         let grads = (ridge(gt.clone(), yt, 1e-2) * wt).sum().backward();
-        let grad: Vec<f32> = gt.grad(&grads).unwrap().into_data().try_to_vec::<f32>().unwrap();
+        let grad: Vec<f32> = gt
+            .grad(&grads)
+            .unwrap()
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         let eps = 1e-2f32;
         let scale = grad.iter().fold(0.0f32, |a, v| a.max(v.abs())) as f64;
         for k in (0..rows * n).step_by(7) {
@@ -109,7 +125,11 @@ mod tests {
             // Central differences in f32 with eps = 1e-2: truncation O(eps^2)
             // and rounding O(1e-7 / eps) together stay under 2% of the largest
             // gradient entry; a wrong gradient is off by O(1) of it.
-            assert!((fd - grad[k] as f64).abs() < 0.02 * scale, "entry {k}: fd {fd} vs autodiff {}", grad[k]);
+            assert!(
+                (fd - grad[k] as f64).abs() < 0.02 * scale,
+                "entry {k}: fd {fd} vs autodiff {}",
+                grad[k]
+            );
         }
     }
 }

@@ -1,25 +1,20 @@
 //! `koopman`: generate data, train, export the weights blob, evaluate.
 
-mod config;
-mod data;
-mod eval;
-mod export;
-mod io;
-mod lstsq;
-mod model;
-mod sim;
-mod train;
-
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
-use crate::config::TrainConfig;
-use crate::sim::Effect;
+use trainer::config::TrainConfig;
+use trainer::sim::Effect;
+use trainer::{data, eval, export, train};
 
 #[derive(Parser)]
-#[command(name = "koopman", version, about = "Deep Koopman model of a pendulum and its on-device Kalman estimator")]
+#[command(
+    name = "koopman",
+    version,
+    about = "Deep Koopman model of a pendulum and its on-device Kalman estimator"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -81,6 +76,20 @@ enum Cmd {
         #[arg(long, default_value = "weights/pendulum.kkf")]
         out: PathBuf,
     },
+    /// Runs the on-device estimator over each rollout of a CSV.
+    Estimate {
+        /// Weights blob.
+        #[arg(long, default_value = "weights/pendulum.kkf")]
+        weights: PathBuf,
+        /// CSV `rollout,t,theta,theta_dot`.
+        data: PathBuf,
+        /// Use only the first N measurements of each rollout (all when absent).
+        #[arg(long)]
+        steps: Option<usize>,
+        /// One JSON object per rollout and line.
+        #[arg(long)]
+        json: bool,
+    },
     /// Scores a blob on the protocol's test set.
     Evaluate {
         /// Weights blob.
@@ -97,37 +106,126 @@ enum Cmd {
 
 fn main() -> Result<()> {
     match Cli::parse().cmd {
-        Cmd::Generate { out, seed, lengths, rollouts, effect } => {
+        Cmd::Generate {
+            out,
+            seed,
+            lengths,
+            rollouts,
+            effect,
+        } => {
             let train = data::training_set(seed, &lengths, rollouts, &effect);
             let test = data::test_set(seed, &data::TEST_LENGTHS, &effect);
             let a = data::write(&train, &out, "train")?;
             let b = data::write(&test, &out, "test")?;
-            println!("wrote {} ({} rollouts) and {} ({} rollouts)", a.display(), train.rollouts.len(), b.display(), test.rollouts.len());
+            println!(
+                "wrote {} ({} rollouts) and {} ({} rollouts)",
+                a.display(),
+                train.rollouts.len(),
+                b.display(),
+                test.rollouts.len()
+            );
         }
-        Cmd::Train { run, resume, seed, iterations, batch, window, config, quiet } => {
+        Cmd::Train {
+            run,
+            resume,
+            seed,
+            iterations,
+            batch,
+            window,
+            config,
+            quiet,
+        } => {
             let mut cfg = match config {
-                Some(p) => serde_json::from_str(&std::fs::read_to_string(&p).with_context(|| format!("{}", p.display()))?)?,
+                Some(p) => serde_json::from_str(
+                    &std::fs::read_to_string(&p).with_context(|| format!("{}", p.display()))?,
+                )?,
                 None => TrainConfig::default(),
             };
-            if let Some(v) = seed { cfg.seed = v; }
-            if let Some(v) = iterations { cfg.iterations = v; }
-            if let Some(v) = batch { cfg.batch = v; }
-            if let Some(v) = window { cfg.window = v; }
-            anyhow::ensure!(cfg.window >= 2 && cfg.window <= data::ROLLOUT_LEN, "window must be in 2..=128");
+            if let Some(v) = seed {
+                cfg.seed = v;
+            }
+            if let Some(v) = iterations {
+                cfg.iterations = v;
+            }
+            if let Some(v) = batch {
+                cfg.batch = v;
+            }
+            if let Some(v) = window {
+                cfg.window = v;
+            }
+            anyhow::ensure!(
+                cfg.window >= 2 && cfg.window <= data::ROLLOUT_LEN,
+                "window must be in 2..=128"
+            );
             let state = train::train(&run, cfg, resume, quiet)?;
             println!(
                 "trained {} iterations in {:.1} s ({:.4} s/iteration); losses total {:.3e} rec {:.3e} pred {:.3e} lin {:.3e}",
-                state.iteration, state.train_seconds, state.train_seconds / state.iteration.max(1) as f64,
-                state.last_losses[0], state.last_losses[1], state.last_losses[2], state.last_losses[3]
+                state.iteration,
+                state.train_seconds,
+                state.train_seconds / state.iteration.max(1) as f64,
+                state.last_losses[0],
+                state.last_losses[1],
+                state.last_losses[2],
+                state.last_losses[3]
             );
         }
         Cmd::Export { run, out } => {
             let info = export::export(&run, &out)?;
-            println!("wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})", out.display(), info.blob_bytes, info.sigma_threshold, info.train_sigma_max);
+            println!(
+                "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
+                out.display(),
+                info.blob_bytes,
+                info.sigma_threshold,
+                info.train_sigma_max
+            );
         }
-        Cmd::Evaluate { weights, data, json } => {
-            let bytes = std::fs::read(&weights).with_context(|| format!("{}", weights.display()))?;
-            let model = estimator::Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
+        Cmd::Estimate {
+            weights,
+            data,
+            steps,
+            json,
+        } => {
+            let bytes =
+                std::fs::read(&weights).with_context(|| format!("{}", weights.display()))?;
+            let model = estimator::Model::from_bytes(&bytes)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
+            let ds = data::read(&data, 2)?;
+            let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
+            if !json {
+                println!(
+                    "rollout  steps  {:>10}  {:>10}  {:>10}  trust",
+                    names[0], "std", "sigma"
+                );
+            }
+            for r in &ds.rollouts {
+                let n = steps.unwrap_or(r.xs.len()).min(r.xs.len());
+                let out = eval::estimate(&model, &r.xs[..n])
+                    .map_err(|e| anyhow::anyhow!("{}: rollout {}: {e}", data.display(), r.id))?;
+                let trusted = out.trust == estimator::Trust::Trusted;
+                if json {
+                    let v = serde_json::json!({
+                        "rollout": r.id, "params": out.params, "param_std": out.param_std,
+                        "param_names": names, "sigma": out.sigma[0], "trusted": trusted,
+                        "trust": format!("{:?}", out.trust).to_lowercase(), "steps": n,
+                    });
+                    println!("{v}");
+                } else {
+                    println!(
+                        "{:>7}  {:>5}  {:>10.4}  {:>10.4}  {:>10.4e}  {:?}",
+                        r.id, n, out.params[0], out.param_std[0], out.sigma[0], out.trust
+                    );
+                }
+            }
+        }
+        Cmd::Evaluate {
+            weights,
+            data,
+            json,
+        } => {
+            let bytes =
+                std::fs::read(&weights).with_context(|| format!("{}", weights.display()))?;
+            let model = estimator::Model::from_bytes(&bytes)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
             let ds = match data {
                 Some(p) => data::read(&p, 128)?,
                 None => data::test_set(0, &data::TEST_LENGTHS, &[]),

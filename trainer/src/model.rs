@@ -54,7 +54,10 @@ pub struct Klm {
 impl Klm {
     /// New model.
     pub fn new(state: usize, hidden: usize, latent: usize, device: &Device) -> Self {
-        Klm { enc: Mlp::new(state, hidden, latent, device), dec: Mlp::new(latent, hidden, state, device) }
+        Klm {
+            enc: Mlp::new(state, hidden, latent, device),
+            dec: Mlp::new(latent, hidden, state, device),
+        }
     }
 }
 
@@ -83,12 +86,21 @@ pub struct Koopman {
 pub fn fit_koopman(y: Tensor<3>, p: Tensor<2>, ridge: f64) -> Koopman {
     let [b, t, l] = y.dims();
     let [_, np] = p.dims();
-    let g_y = y.clone().slice([0..b, 0..t - 1, 0..l]).reshape([b * (t - 1), l]);
-    let g_p = p.unsqueeze_dim::<3>(1).expand([b, t - 1, np]).reshape([b * (t - 1), np]);
+    let g_y = y
+        .clone()
+        .slice([0..b, 0..t - 1, 0..l])
+        .reshape([b * (t - 1), l]);
+    let g_p = p
+        .unsqueeze_dim::<3>(1)
+        .expand([b, t - 1, np])
+        .reshape([b * (t - 1), np]);
     let target = y.slice([0..b, 1..t, 0..l]).reshape([b * (t - 1), l]);
     let g = Tensor::cat(vec![g_y, g_p], 1);
     let kt = lstsq::ridge(g, target, ridge); // [l + np, l]
-    Koopman { at: kt.clone().slice([0..l, 0..l]), ct: kt.slice([l..l + np, 0..l]) }
+    Koopman {
+        at: kt.clone().slice([0..l, 0..l]),
+        ct: kt.slice([l..l + np, 0..l]),
+    }
 }
 
 /// Rolls `y_0` (`[B, latent]`) forward `steps` times; returns `[B, steps, latent]`.
@@ -105,7 +117,14 @@ pub fn rollout(k: &Koopman, y0: Tensor<2>, p: Tensor<2>, steps: usize) -> Tensor
 
 impl Klm {
     /// Losses of one batch: `x` `[B, T, state]` normalised, `p` `[B, P]`.
-    pub fn losses(&self, x: Tensor<3>, p: Tensor<2>, act: Activation, ridge: f64, w_lin: f64) -> Losses {
+    pub fn losses(
+        &self,
+        x: Tensor<3>,
+        p: Tensor<2>,
+        act: Activation,
+        ridge: f64,
+        w_lin: f64,
+    ) -> Losses {
         let [b, t, s] = x.dims();
         let y = self.enc.forward(x.clone(), act);
         let [_, _, l] = y.dims();
@@ -119,6 +138,11 @@ impl Klm {
         let pred = (x_pred - x_next).powi_scalar(2).mean();
         let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
         let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
-        Losses { total, rec, pred, lin }
+        Losses {
+            total,
+            rec,
+            pred,
+            lin,
+        }
     }
 }

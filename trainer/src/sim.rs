@@ -59,7 +59,6 @@ impl Effect {
         }
     }
 
-
     /// Parses `name:coefficient`, e.g. `viscous:0.1`.
     pub fn parse(s: &str) -> Result<Effect, String> {
         let (name, c) = s
@@ -109,7 +108,12 @@ pub struct Pendulum {
 impl Pendulum {
     /// The protocol's pendulum of length `length` with no effect.
     pub fn new(length: f64) -> Self {
-        Pendulum { length, g: G, mass: MASS, effects: Vec::new() }
+        Pendulum {
+            length,
+            g: G,
+            mass: MASS,
+            effects: Vec::new(),
+        }
     }
 
     /// `(theta_dot, theta_ddot)` at `x` under torque `u`.
@@ -168,9 +172,16 @@ mod tests {
         let xs = p.rollout([0.01, 0.0], (period / dt) as usize + 2, dt);
         // Released at rest at +theta, theta_dot turns from negative to positive
         // at the far turning point: half a period.
-        let i = (1..xs.len()).find(|&i| xs[i - 1][1] < 0.0 && xs[i][1] >= 0.0).unwrap();
+        let i = (1..xs.len())
+            .find(|&i| xs[i - 1][1] < 0.0 && xs[i][1] >= 0.0)
+            .unwrap();
         // Tolerance: the crossing is located to one sample (dt).
-        assert!((i as f64 * dt - period / 2.0).abs() < 2.0 * dt, "{} vs {}", i as f64 * dt, period / 2.0);
+        assert!(
+            (i as f64 * dt - period / 2.0).abs() < 2.0 * dt,
+            "{} vs {}",
+            i as f64 * dt,
+            period / 2.0
+        );
     }
 
     #[test]
@@ -192,7 +203,10 @@ mod tests {
 
     #[test]
     fn effects_parse() {
-        assert_eq!(Effect::parse("viscous:0.25").unwrap(), Effect::Viscous(0.25));
+        assert_eq!(
+            Effect::parse("viscous:0.25").unwrap(),
+            Effect::Viscous(0.25)
+        );
         assert!(Effect::parse("viscous").is_err());
         assert!(Effect::parse("magic:1").is_err());
         assert!(Effect::parse("drag:x").is_err());

@@ -44,11 +44,17 @@ impl Norm {
                 s[k] += (x[k] - mu[k]).powi(2) / n;
             }
         }
-        Norm { mu, s: s.map(f64::sqrt) }
+        Norm {
+            mu,
+            s: s.map(f64::sqrt),
+        }
     }
     /// Applies it.
     pub fn apply(&self, x: [f64; 2]) -> [f32; 2] {
-        [((x[0] - self.mu[0]) / self.s[0]) as f32, ((x[1] - self.mu[1]) / self.s[1]) as f32]
+        [
+            ((x[0] - self.mu[0]) / self.s[0]) as f32,
+            ((x[1] - self.mu[1]) / self.s[1]) as f32,
+        ]
     }
 }
 
@@ -120,7 +126,9 @@ impl Batcher {
         let mut lengths: Vec<f64> = Vec::new();
         let mut strata: Vec<Vec<usize>> = Vec::new();
         for (i, r) in ds.rollouts.iter().enumerate() {
-            let m = ds.meta(r.id).context("training rollout without truth in its sidecar")?;
+            let m = ds
+                .meta(r.id)
+                .context("training rollout without truth in its sidecar")?;
             xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
             ps.push([m.length as f32, 0.0]);
             match lengths.iter().position(|&l| l == m.length) {
@@ -136,8 +144,15 @@ impl Batcher {
 
     /// Batch `iteration`'s windows, drawn from a generator seeded with the run's
     /// seed and the iteration (so a resumed run draws the same batches).
-    pub fn batch(&self, cfg: &TrainConfig, iteration: usize, device: &Device) -> (Tensor<3>, Tensor<2>) {
-        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    pub fn batch(
+        &self,
+        cfg: &TrainConfig,
+        iteration: usize,
+        device: &Device,
+    ) -> (Tensor<3>, Tensor<2>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            cfg.seed ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
         let t = cfg.window;
         let mut x = Vec::with_capacity(cfg.batch * t * 2);
         let mut p = Vec::with_capacity(cfg.batch * 2);
@@ -158,18 +173,32 @@ impl Batcher {
     }
 }
 
-fn save_checkpoint(paths: &RunPaths, model: &Klm, optim_bytes: Bytes, state: &RunState) -> Result<()> {
-    let bytes = model.clone().into_record().into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+fn save_checkpoint(
+    paths: &RunPaths,
+    model: &Klm,
+    optim_bytes: Bytes,
+    state: &RunState,
+) -> Result<()> {
+    let bytes = model
+        .clone()
+        .into_record()
+        .into_bytes()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     write_atomic(&paths.model, &bytes)?;
     write_atomic(&paths.optim, &optim_bytes)?;
-    write_atomic(&paths.state, serde_json::to_string_pretty(state)?.as_bytes())?;
+    write_atomic(
+        &paths.state,
+        serde_json::to_string_pretty(state)?.as_bytes(),
+    )?;
     Ok(())
 }
 
 /// Loads the model of a run.
 pub fn load_model(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<Klm> {
-    let bytes = std::fs::read(&paths.model).with_context(|| format!("{}", paths.model.display()))?;
-    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes)).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let bytes =
+        std::fs::read(&paths.model).with_context(|| format!("{}", paths.model.display()))?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     Klm::new(2, cfg.hidden, estimator::LATENT_DIM, device)
         .try_load_record(record)
         .map_err(|e| anyhow::anyhow!("{}: {e:?}", paths.model.display()))
@@ -182,7 +211,9 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
     let device = device();
     let (cfg, mut model, mut optim, mut state) = if resume {
         let cfg: TrainConfig = serde_json::from_str(&std::fs::read_to_string(&paths.config)?)?;
-        let state: RunState = serde_json::from_str(&std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?)?;
+        let state: RunState = serde_json::from_str(
+            &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
+        )?;
         let model = load_model(&paths, &cfg, &device)?;
         let optim = AdamConfig::new()
             .init()
@@ -194,30 +225,52 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
         let kept: String = log
             .lines()
             .enumerate()
-            .filter(|(i, l)| *i == 0 || l.split(',').next().and_then(|v| v.parse::<usize>().ok()).is_some_and(|it| it <= state.iteration))
+            .filter(|(i, l)| {
+                *i == 0
+                    || l.split(',')
+                        .next()
+                        .and_then(|v| v.parse::<usize>().ok())
+                        .is_some_and(|it| it <= state.iteration)
+            })
             .map(|(_, l)| format!("{l}\n"))
             .collect();
         write_atomic(&paths.log, kept.as_bytes())?;
         (cfg, model, optim, state)
     } else {
         std::fs::create_dir_all(dir)?;
-        write_atomic(&paths.config, serde_json::to_string_pretty(&cfg)?.as_bytes())?;
+        write_atomic(
+            &paths.config,
+            serde_json::to_string_pretty(&cfg)?.as_bytes(),
+        )?;
         device.seed(cfg.seed);
         let model = Klm::new(2, cfg.hidden, estimator::LATENT_DIM, &device);
         let norm = Norm::fit(&training_data(&cfg));
-        let state = RunState { iteration: 0, train_seconds: 0.0, norm, last_losses: [0.0; 4] };
+        let state = RunState {
+            iteration: 0,
+            train_seconds: 0.0,
+            norm,
+            last_losses: [0.0; 4],
+        };
         write_atomic(&paths.log, b"iteration,total,rec,pred,lin,seconds\n")?;
         (cfg, model, AdamConfig::new().init(), state)
     };
     if cfg.threads > 0 {
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(cfg.threads).build_global();
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(cfg.threads)
+            .build_global();
     }
     let ds = training_data(&cfg);
     let batcher = Batcher::new(&ds, &state.norm)?;
-    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(cfg.iterations as u64) };
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(cfg.iterations as u64)
+    };
     bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_position(state.iteration as u64);
     let mut log = String::new();
@@ -226,7 +279,8 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
     while state.iteration < cfg.iterations {
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
         let l = model.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin);
-        let values = [&l.total, &l.rec, &l.pred, &l.lin].map(|t| t.clone().into_scalar::<f32>() as f64);
+        let values =
+            [&l.total, &l.rec, &l.pred, &l.lin].map(|t| t.clone().into_scalar::<f32>() as f64);
         let grads = GradientsParams::from_grads(l.total.backward(), &model);
         model = optim.step(cfg.lr_at(state.iteration), model, grads);
         state.iteration += 1;
@@ -236,7 +290,10 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             "{},{:.6e},{:.6e},{:.6e},{:.6e},{:.3}\n",
             state.iteration, values[0], values[1], values[2], values[3], state.train_seconds
         ));
-        bar.set_message(format!("loss {:.2e} rec {:.2e} pred {:.2e} lin {:.2e}", values[0], values[1], values[2], values[3]));
+        bar.set_message(format!(
+            "loss {:.2e} rec {:.2e} pred {:.2e} lin {:.2e}",
+            values[0], values[1], values[2], values[3]
+        ));
         bar.inc(1);
         if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
             let mut old = std::fs::read(&paths.log).unwrap_or_default();

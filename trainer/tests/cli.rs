@@ -10,7 +10,12 @@ fn koopman() -> Command {
 
 fn run_ok(cmd: &mut Command) -> String {
     let out = cmd.output().unwrap();
-    assert!(out.status.success(), "{:?}: {}", cmd, String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{:?}: {}",
+        cmd,
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8(out.stdout).unwrap()
 }
 
@@ -18,7 +23,11 @@ fn run_ok(cmd: &mut Command) -> String {
 fn generate_is_deterministic_in_its_seed() {
     let dir = tempfile::tempdir().unwrap();
     let generate = |name: &str, seed: &str| {
-        run_ok(koopman().args(["generate", "--seed", seed, "--rollouts", "20", "--out"]).arg(dir.path().join(name)));
+        run_ok(
+            koopman()
+                .args(["generate", "--seed", seed, "--rollouts", "20", "--out"])
+                .arg(dir.path().join(name)),
+        );
     };
     generate("a", "7");
     generate("b", "7");
@@ -40,10 +49,25 @@ fn generate_is_deterministic_in_its_seed() {
 #[test]
 fn an_effect_changes_the_data() {
     let dir = tempfile::tempdir().unwrap();
-    run_ok(koopman().args(["generate", "--rollouts", "2", "--effect", "viscous:0.2", "--out"]).arg(dir.path()));
+    run_ok(
+        koopman()
+            .args([
+                "generate",
+                "--rollouts",
+                "2",
+                "--effect",
+                "viscous:0.2",
+                "--out",
+            ])
+            .arg(dir.path()),
+    );
     let side = std::fs::read_to_string(dir.path().join("test.json")).unwrap();
     assert!(side.contains("\"viscous\": 0.2"), "{side}");
-    let out = koopman().args(["generate", "--effect", "nonsense:1", "--out"]).arg(dir.path()).output().unwrap();
+    let out = koopman()
+        .args(["generate", "--effect", "nonsense:1", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown"));
 }
@@ -62,7 +86,13 @@ fn a_killed_run_resumes_from_its_checkpoint_and_exports() {
     let run = dir.path().join("run");
     let cfg = dir.path().join("cfg.json");
     std::fs::write(&cfg, r#"{"iterations": 400, "batch": 4, "window": 16, "rollouts_per_length": 4, "checkpoint_every": 5, "hidden": 128}"#).unwrap();
-    let mut child = koopman().args(["train", "--quiet", "--run"]).arg(&run).arg("--config").arg(&cfg).spawn().unwrap();
+    let mut child = koopman()
+        .args(["train", "--quiet", "--run"])
+        .arg(&run)
+        .arg("--config")
+        .arg(&cfg)
+        .spawn()
+        .unwrap();
     let start = Instant::now();
     while iteration(&run) < 10 && start.elapsed() < Duration::from_secs(120) {
         std::thread::sleep(Duration::from_millis(20));
@@ -71,17 +101,76 @@ fn a_killed_run_resumes_from_its_checkpoint_and_exports() {
     child.wait().unwrap();
     let at_kill = iteration(&run);
     assert!((10..400).contains(&at_kill), "killed at {at_kill}");
-    let out = run_ok(koopman().args(["train", "--quiet", "--resume", "--run"]).arg(&run));
+    let out = run_ok(
+        koopman()
+            .args(["train", "--quiet", "--resume", "--run"])
+            .arg(&run),
+    );
     assert!(out.contains("trained 400 iterations"), "{out}");
     assert_eq!(iteration(&run), 400);
     // The log has one line per iteration up to the last checkpoint before the
     // kill, then every iteration after it: no gap, no repeat.
     let log = std::fs::read_to_string(run.join("log.csv")).unwrap();
-    let its: Vec<usize> = log.lines().skip(1).map(|l| l.split(',').next().unwrap().parse().unwrap()).collect();
+    let its: Vec<usize> = log
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
     assert_eq!(its, (1..=400).collect::<Vec<_>>());
     let blob = dir.path().join("w.kkf");
     run_ok(koopman().arg("export").arg(&run).arg("--out").arg(&blob));
     let bytes = std::fs::read(&blob).unwrap();
     estimator::Model::from_bytes(&bytes).unwrap();
     assert!(blob.with_extension("json").exists());
+}
+
+fn shipped_weights() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf")
+}
+
+#[test]
+fn estimate_prints_one_json_object_per_rollout() {
+    let dir = tempfile::tempdir().unwrap();
+    run_ok(
+        koopman()
+            .args(["generate", "--rollouts", "1", "--out"])
+            .arg(dir.path()),
+    );
+    let out = run_ok(
+        koopman()
+            .args(["estimate", "--json", "--steps", "64", "--weights"])
+            .arg(shipped_weights())
+            .arg(dir.path().join("test.csv")),
+    );
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 50);
+    for (k, v) in lines.iter().enumerate() {
+        assert_eq!(v["rollout"], k as u64);
+        assert_eq!(v["params"].as_array().unwrap().len(), 2);
+        assert_eq!(v["param_std"].as_array().unwrap().len(), 2);
+        assert!(v["sigma"].as_f64().unwrap() >= 0.0);
+        assert!(v["trusted"].is_boolean());
+        assert_eq!(v["steps"], 64);
+    }
+    // Rollouts 0..10 are L = 0.5, far outside training: none trusted.
+    assert!(lines[..10].iter().filter(|v| v["trusted"] == true).count() <= 1);
+}
+
+#[test]
+fn a_broken_csv_is_refused_naming_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("bad.csv");
+    std::fs::write(&csv, "rollout,t,theta,theta_dot\n0,0,1,0\n0,0.05,oops,0\n").unwrap();
+    let out = koopman()
+        .args(["estimate", "--weights"])
+        .arg(shipped_weights())
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.csv:3") && err.contains("theta"), "{err}");
 }

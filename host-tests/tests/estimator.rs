@@ -1,0 +1,165 @@
+//! The estimator on the shipped weights and the protocol's test set.
+
+use estimator::{Error, Estimator, Model, Trust};
+use host_tests::shipped_blob;
+use trainer::data::{TEST_LENGTHS, test_set};
+
+#[test]
+fn shipped_blob_reads() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let b = m.blob();
+    assert_eq!(b.header, estimator::blob::Header::CURRENT);
+    assert_eq!(b.body.params[0].name, "length");
+    assert!(b.body.filter.sigma_threshold > 0.0);
+    // Rows of F for the parameters are the identity.
+    for i in 16..18 {
+        for j in 0..18 {
+            assert_eq!(m.f(i, j), if i == j { 1.0 } else { 0.0 });
+        }
+    }
+}
+
+#[test]
+fn malformed_blobs_get_typed_errors() {
+    let bytes = shipped_blob();
+    assert_eq!(
+        Model::from_bytes(&bytes[..3]).unwrap_err(),
+        Error::BlobTruncated
+    );
+    assert_eq!(
+        Model::from_bytes(&bytes[..bytes.len() - 1]).unwrap_err(),
+        Error::BlobTruncated
+    );
+    let mut long = bytes.clone();
+    long.push(0);
+    assert_eq!(
+        Model::from_bytes(&long).unwrap_err(),
+        Error::BlobTrailingBytes
+    );
+    let mut magic = bytes.clone();
+    magic[0] ^= 0xff;
+    assert_eq!(Model::from_bytes(&magic).unwrap_err(), Error::BlobBadMagic);
+    let mut version = bytes.clone();
+    version[4] = 9;
+    assert_eq!(
+        Model::from_bytes(&version).unwrap_err(),
+        Error::BlobBadVersion
+    );
+    let mut dims = bytes.clone();
+    dims[7] = 17; // latent_dim
+    assert_eq!(
+        Model::from_bytes(&dims).unwrap_err(),
+        Error::BlobShapeMismatch
+    );
+    let mut weight = bytes.clone();
+    let mid = weight.len() / 2;
+    weight[mid] ^= 0x10;
+    assert_eq!(Model::from_bytes(&weight).unwrap_err(), Error::BlobBadCrc);
+}
+
+#[test]
+fn every_flipped_byte_is_refused() {
+    let bytes = shipped_blob();
+    let mut b = bytes.clone();
+    for i in 0..b.len() {
+        b[i] ^= 0x5a;
+        assert!(
+            Model::from_bytes(&b).is_err(),
+            "byte {i} flipped was accepted"
+        );
+        b[i] ^= 0x5a;
+    }
+}
+
+fn rollout(length: f64, k: usize) -> Vec<[f32; 2]> {
+    let ds = test_set(0, &[length], &[]);
+    ds.rollouts[k]
+        .xs
+        .iter()
+        .map(|x| [x[0] as f32, x[1] as f32])
+        .collect()
+}
+
+#[test]
+fn a_refused_measurement_leaves_the_state_as_it_was() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let xs = rollout(2.0, 4);
+    let mut est = Estimator::new(&m);
+    for x in &xs[..20] {
+        est.step(x).unwrap();
+    }
+    let (g, p) = (*est.mean(), *est.covariance());
+    for bad in [
+        [f32::NAN, 0.0],
+        [0.0, f32::INFINITY],
+        [f32::NEG_INFINITY, 1.0],
+        [1e30, 0.0],
+    ] {
+        assert_eq!(est.step(&bad), Err(Error::NonFiniteInput));
+        assert_eq!(*est.mean(), g);
+        assert_eq!(*est.covariance(), p);
+    }
+    // And it carries on as if the bad readings never came.
+    let mut clean = Estimator::new(&m);
+    for x in &xs[..20] {
+        clean.step(x).unwrap();
+    }
+    assert_eq!(est.step(&xs[20]).unwrap(), clean.step(&xs[20]).unwrap());
+}
+
+#[test]
+fn covariance_stays_symmetric_positive_definite() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    for &l in &TEST_LENGTHS {
+        let mut est = Estimator::new(&m);
+        for x in rollout(l, 9) {
+            est.step(&x).unwrap();
+            let p = est.covariance();
+            assert_eq!(*p, p.transpose(), "P not symmetric at L = {l}");
+            // The undeclared parameter has zero variance: check the 17x17 block.
+            let block = p.fixed_view::<17, 17>(0, 0).into_owned();
+            assert!(
+                block.cholesky().is_some(),
+                "P not positive definite at L = {l}"
+            );
+        }
+    }
+}
+
+#[test]
+fn out_of_distribution_lengths_are_flagged() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let verdict = |l: f64| {
+        (0..10)
+            .filter(|&k| {
+                let mut est = Estimator::new(&m);
+                let mut last = None;
+                for x in &rollout(l, k)[..64] {
+                    last = Some(est.step(x).unwrap());
+                }
+                last.unwrap().trust == Trust::Untrusted
+            })
+            .count()
+    };
+    // The L = 0.5 pendulum is far outside the trained {2, 5}: all flagged.
+    assert!(verdict(0.5) >= 9, "{}", verdict(0.5));
+    // The trained lengths: at most one flagged.
+    assert!(verdict(2.0) <= 1 && verdict(5.0) <= 1);
+}
+
+#[test]
+fn simulate_writes_every_slot_and_refuses_nan() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let mut out = [[f32::NAN; 2]; 127];
+    m.simulate(&[2.0, 0.0], &[2.0, 0.0], &mut out).unwrap();
+    assert!(out.iter().flatten().all(|v| v.is_finite()));
+    assert_eq!(
+        m.simulate(&[f32::NAN, 0.0], &[2.0, 0.0], &mut out),
+        Err(Error::NonFiniteInput)
+    );
+}

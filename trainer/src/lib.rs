@@ -1,0 +1,13 @@
+//! The host side of the project: the pendulum simulator, data sets, the
+//! KLM trained on burn, the weights export and the protocol's scoring.
+//! The `koopman` binary (`main.rs`) is a thin command line over this.
+
+pub mod config;
+pub mod data;
+pub mod eval;
+pub mod export;
+pub mod io;
+pub mod lstsq;
+pub mod model;
+pub mod sim;
+pub mod train;
