@@ -104,8 +104,28 @@ enum Cmd {
     },
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().cmd {
+/// The bytes of a weights blob, with the path in the error.
+fn read_blob(path: &std::path::Path) -> Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))
+}
+
+/// A blob's typed error, naming the file.
+fn blob_error(path: &std::path::Path, e: estimator::Error) -> anyhow::Error {
+    anyhow::anyhow!("{}: {e}", path.display())
+}
+
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse().cmd) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cmd: Cmd) -> Result<()> {
+    match cmd {
         Cmd::Generate {
             out,
             seed,
@@ -185,10 +205,9 @@ fn main() -> Result<()> {
             steps,
             json,
         } => {
-            let bytes =
-                std::fs::read(&weights).with_context(|| format!("{}", weights.display()))?;
-            let model = estimator::Model::from_bytes(&bytes)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
+            let bytes = read_blob(&weights)?;
+            let model =
+                estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
             let ds = data::read(&data, 2)?;
             let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
             if !json {
@@ -222,10 +241,9 @@ fn main() -> Result<()> {
             data,
             json,
         } => {
-            let bytes =
-                std::fs::read(&weights).with_context(|| format!("{}", weights.display()))?;
-            let model = estimator::Model::from_bytes(&bytes)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", weights.display()))?;
+            let bytes = read_blob(&weights)?;
+            let model =
+                estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
             let ds = match data {
                 Some(p) => data::read(&p, 128)?,
                 None => data::test_set(0, &data::TEST_LENGTHS, &[]),
