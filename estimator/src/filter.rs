@@ -21,7 +21,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::model::Model;
-use crate::{AUG_DIM, Error, LATENT_DIM, PARAM_DIM, STATE_DIM, State};
+use crate::{AUG_DIM, Error, LATENT_DIM, PARAM_DIM, State};
 
 /// `[y; p]` as a vector.
 pub type AugVector = SVector<f32, AUG_DIM>;
@@ -256,5 +256,3 @@ pub fn run<'m>(est: &mut Estimator<'m>, xs: &[State]) -> Result<StepOutput, Erro
     }
     last
 }
-
-const _: () = assert!(STATE_DIM == 2);

@@ -209,8 +209,16 @@ pub fn load_model(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Resul
 pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<RunState> {
     let paths = RunPaths::new(dir);
     let device = device();
+    let saved: Option<TrainConfig> = if resume {
+        Some(serde_json::from_str(
+            &std::fs::read_to_string(&paths.config).context("no run to resume")?,
+        )?)
+    } else {
+        None
+    };
+    let ds = training_data(saved.as_ref().unwrap_or(&cfg));
     let (cfg, mut model, mut optim, mut state) = if resume {
-        let cfg: TrainConfig = serde_json::from_str(&std::fs::read_to_string(&paths.config)?)?;
+        let cfg = saved.clone().context("no saved config")?;
         let state: RunState = serde_json::from_str(
             &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
         )?;
@@ -244,7 +252,7 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
         )?;
         device.seed(cfg.seed);
         let model = Klm::new(2, cfg.hidden, estimator::LATENT_DIM, &device);
-        let norm = Norm::fit(&training_data(&cfg));
+        let norm = Norm::fit(&ds);
         let state = RunState {
             iteration: 0,
             train_seconds: 0.0,
@@ -259,7 +267,6 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             .num_threads(cfg.threads)
             .build_global();
     }
-    let ds = training_data(&cfg);
     let batcher = Batcher::new(&ds, &state.norm)?;
     let bar = if quiet {
         ProgressBar::hidden()
