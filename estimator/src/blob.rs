@@ -84,17 +84,16 @@ impl<'a> F32s<'a> {
     /// The `i`-th value, or `None` past the end.
     #[inline]
     pub fn get(&self, i: usize) -> Option<f32> {
-        let b = self.0.get(i * 4..i * 4 + 4)?;
-        let mut a = [0u8; 4];
-        a.copy_from_slice(b);
-        Some(f32::from_le_bytes(a))
+        let b = self.0.get(i * 4..)?.first_chunk::<4>()?;
+        Some(f32::from_le_bytes(*b))
     }
     /// All values in order.
     pub fn iter(&self) -> impl Iterator<Item = f32> + 'a {
+        // `chunks_exact(4)` yields 4-byte chunks only; the fallback is
+        // never taken but keeps the code free of panic paths.
         self.0.chunks_exact(4).map(|c| {
-            let mut a = [0u8; 4];
-            a.copy_from_slice(c);
-            f32::from_le_bytes(a)
+            c.first_chunk::<4>()
+                .map_or(f32::NAN, |a| f32::from_le_bytes(*a))
         })
     }
     fn check(&self, n: usize) -> Result<(), Error> {
@@ -294,6 +293,19 @@ impl<'a> Blob<'a> {
             layer.check(i, o)?;
         }
         b.f.check(AUG_DIM * AUG_DIM)?;
+        // The filter treats the parameters as static: their rows of F must
+        // be the identity.
+        let param_rows_identity =
+            b.f.iter()
+                .enumerate()
+                .skip(LATENT_DIM * AUG_DIM)
+                .all(|(k, v)| {
+                    let (i, j) = (k / AUG_DIM, k % AUG_DIM);
+                    v == if i == j { 1.0 } else { 0.0 }
+                });
+        if !param_rows_identity {
+            return Err(Error::BlobParamsNotStatic);
+        }
         b.b.check(AUG_DIM * INPUT_DIM)?;
         if !b.params.iter().all(|p| finite(&p.train_range)) {
             return Err(Error::BlobNonFinite);

@@ -27,6 +27,9 @@ pub enum Error {
     /// A weight, a normalisation constant or a filter setting is NaN or
     /// infinite, or a variance is not positive.
     BlobNonFinite,
+    /// The rows of `F` for the parameters are not the identity: the blob
+    /// does not keep the parameters static, which the filter relies on.
+    BlobParamsNotStatic,
     /// A measurement holds NaN or an infinity, or is too large to be a
     /// real reading; the filter state was left unchanged.
     NonFiniteInput,
@@ -39,9 +42,11 @@ pub enum Error {
     FilterNonFinite,
 }
 
-impl fmt::Display for Error {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let s = match self {
+impl Error {
+    /// What went wrong, as a static message (the [`Display`](fmt::Display)
+    /// text), for firmware that prints without `core::fmt`.
+    pub const fn message(&self) -> &'static str {
+        match self {
             Error::BlobTruncated => "blob: truncated",
             Error::BlobBadMagic => "blob: bad magic (not a Koopman weights blob)",
             Error::BlobBadVersion => "blob: unsupported format version",
@@ -50,14 +55,20 @@ impl fmt::Display for Error {
             Error::BlobMalformed => "blob: body could not be decoded",
             Error::BlobTrailingBytes => "blob: trailing bytes after the end",
             Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
+            Error::BlobParamsNotStatic => "blob: F does not keep the parameters static",
             Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
             Error::FilterNotPositiveDefinite => {
                 "filter: innovation covariance not positive definite"
             }
             Error::InputBadLength => "input: buffer has the wrong length",
             Error::FilterNonFinite => "filter: update produced a non-finite state",
-        };
-        f.write_str(s)
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.message())
     }
 }
 

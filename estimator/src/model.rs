@@ -4,13 +4,41 @@
 use crate::blob::{Activation, Blob, Layer};
 use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
 
+/// The latent rows of `F`, `C = [A B]` (row-major), decoded once: the
+/// filter reads them every step. The parameter rows are the identity
+/// (checked when the blob is read).
+pub type KoopmanRows = [[f32; AUG_DIM]; LATENT_DIM];
+
 /// A validated model whose weights stay in the bytes it was read from.
+///
+/// Only the latent rows of `F` ([`KoopmanRows`], 1152 bytes) are copied
+/// out of the blob, as `f32` the filter can load directly; the MLP weights
+/// (the bulk of the blob) are read in place.
 #[derive(Debug, Clone, Copy)]
 pub struct Model<'a> {
     blob: Blob<'a>,
+    c: KoopmanRows,
 }
 
+#[inline(always)]
+fn activate(v: f32, act: Option<Activation>) -> f32 {
+    match act {
+        None => v,
+        Some(Activation::Relu) => v.max(0.0),
+        Some(Activation::Tanh) => libm::tanhf(v),
+    }
+}
+
+/// Lanes of the dot products in [`dense`].
+const LANES: usize = 8;
+
 /// `out = act(W input + b)`, with `W` output-major in the layer.
+///
+/// Each dot product runs in [`LANES`] interleaved partial sums (lane `l`
+/// takes the inputs `j = l mod LANES`), added pairwise at the end, then
+/// the bias. The order is fixed, so every target computes the same bits;
+/// the lanes let a host CPU use its vector units and shorten the chain of
+/// dependent additions.
 #[inline]
 fn dense<const I: usize, const O: usize>(
     layer: &Layer<'_>,
@@ -18,18 +46,23 @@ fn dense<const I: usize, const O: usize>(
     out: &mut [f32; O],
     act: Option<Activation>,
 ) {
+    let (xs, x_rest) = input.as_chunks::<LANES>();
     let rows = layer.weight.0.chunks_exact(I * 4);
     for ((o, row), b) in out.iter_mut().zip(rows).zip(layer.bias.iter()) {
-        let mut acc = b;
-        for (x, w) in input.iter().zip(row.chunks_exact(4)) {
-            let w = w.first_chunk::<4>().map_or(0.0, |a| f32::from_le_bytes(*a));
-            acc += x * w;
+        let (w, _) = row.as_chunks::<4>();
+        let (ws, w_rest) = w.as_chunks::<LANES>();
+        let mut lanes = [0.0f32; LANES];
+        for (x8, w8) in xs.iter().zip(ws) {
+            for ((l, x), w) in lanes.iter_mut().zip(x8).zip(w8) {
+                *l += x * f32::from_le_bytes(*w);
+            }
         }
-        *o = match act {
-            None => acc,
-            Some(Activation::Relu) => acc.max(0.0),
-            Some(Activation::Tanh) => libm::tanhf(acc),
-        };
+        let [l0, l1, l2, l3, l4, l5, l6, l7] = lanes;
+        let mut acc = ((l0 + l4) + (l1 + l5)) + ((l2 + l6) + (l3 + l7));
+        for (x, w) in x_rest.iter().zip(w_rest) {
+            acc += x * f32::from_le_bytes(*w);
+        }
+        *o = activate(acc + b, act);
     }
 }
 
@@ -37,9 +70,18 @@ impl<'a> Model<'a> {
     /// Reads a blob (see [`Blob::from_bytes`] for every check made); the
     /// weights are borrowed from `bytes`, not copied.
     pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
-        Ok(Model {
-            blob: Blob::from_bytes(bytes)?,
-        })
+        let blob = Blob::from_bytes(bytes)?;
+        let mut c = [[0.0; AUG_DIM]; LATENT_DIM];
+        for (dst, src) in c.iter_mut().flatten().zip(blob.body.f.iter()) {
+            *dst = src;
+        }
+        Ok(Model { blob, c })
+    }
+
+    /// The latent rows of `F`.
+    #[inline]
+    pub fn koopman_rows(&self) -> &KoopmanRows {
+        &self.c
     }
 
     /// The decoded blob.

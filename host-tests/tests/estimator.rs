@@ -90,7 +90,7 @@ fn a_refused_measurement_leaves_the_state_as_it_was() {
     for x in &xs[..20] {
         est.step(x).unwrap();
     }
-    let (g, p) = (*est.mean(), *est.covariance());
+    let (g, p) = (est.mean(), est.covariance());
     for bad in [
         [f32::NAN, 0.0],
         [0.0, f32::INFINITY],
@@ -98,8 +98,8 @@ fn a_refused_measurement_leaves_the_state_as_it_was() {
         [1e30, 0.0],
     ] {
         assert_eq!(est.step(&bad), Err(Error::NonFiniteInput));
-        assert_eq!(*est.mean(), g);
-        assert_eq!(*est.covariance(), p);
+        assert_eq!(est.mean(), g);
+        assert_eq!(est.covariance(), p);
     }
     // And it carries on as if the bad readings never came.
     let mut clean = Estimator::new(&m);
@@ -118,7 +118,7 @@ fn covariance_stays_symmetric_positive_definite() {
         for x in rollout(l, 9) {
             est.step(&x).unwrap();
             let p = est.covariance();
-            assert_eq!(*p, p.transpose(), "P not symmetric at L = {l}");
+            assert_eq!(p, p.transpose(), "P not symmetric at L = {l}");
             // The undeclared parameter has zero variance: check the 17x17 block.
             let block = p.fixed_view::<17, 17>(0, 0).into_owned();
             assert!(

@@ -1,55 +1,10 @@
-//! The estimator's f32 filter against an independent f64 reference: dynamic
-//! matrices (nalgebra `DMatrix`), `S^-1` by LU instead of Cholesky, the
-//! standard `P = (I - K H) P` update instead of Joseph's form.
+//! The estimator's f32 filter against the independent f64 reference in
+//! `host_tests::reference`.
 
-use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model};
+use estimator::{Estimator, LATENT_DIM, Model};
+use host_tests::reference::Reference;
 use host_tests::shipped_blob;
-use nalgebra::{DMatrix, DVector};
 use trainer::data::{TEST_LENGTHS, test_set};
-
-struct Reference {
-    f: DMatrix<f64>,
-    q: DMatrix<f64>,
-    r: DMatrix<f64>,
-    h: DMatrix<f64>,
-    g: DVector<f64>,
-    p: DMatrix<f64>,
-}
-
-impl Reference {
-    fn new(m: &Model<'_>, z0: &[f32]) -> Self {
-        let spec = &m.blob().body.filter;
-        let f = DMatrix::from_fn(AUG_DIM, AUG_DIM, |i, j| m.f(i, j) as f64);
-        let q = DMatrix::from_diagonal(&DVector::from_iterator(
-            AUG_DIM,
-            spec.q.iter().map(|&v| v as f64),
-        ));
-        let r = DMatrix::from_diagonal(&DVector::from_iterator(
-            LATENT_DIM,
-            spec.r.iter().map(|&v| v as f64),
-        ));
-        let h = DMatrix::from_fn(LATENT_DIM, AUG_DIM, |i, j| if i == j { 1.0 } else { 0.0 });
-        let g = DVector::from_iterator(
-            AUG_DIM,
-            z0.iter().chain(&spec.prior_mean).map(|&v| v as f64),
-        );
-        let p = DMatrix::from_diagonal(&DVector::from_iterator(
-            AUG_DIM,
-            spec.prior_var.iter().map(|&v| v as f64),
-        ));
-        Reference { f, q, r, h, g, p }
-    }
-
-    fn step(&mut self, z: &[f32]) {
-        let z = DVector::from_iterator(LATENT_DIM, z.iter().map(|&v| v as f64));
-        let g = &self.f * &self.g;
-        let p = &self.f * &self.p * self.f.transpose() + &self.q;
-        let s = &self.h * &p * self.h.transpose() + &self.r;
-        let k = &p * self.h.transpose() * s.lu().try_inverse().unwrap();
-        self.g = &g + &k * (z - &self.h * &g);
-        self.p = (DMatrix::identity(AUG_DIM, AUG_DIM) - &k * &self.h) * p;
-    }
-}
 
 #[test]
 fn filter_matches_an_f64_reference_over_whole_test_rollouts() {

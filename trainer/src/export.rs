@@ -344,8 +344,13 @@ mod tests {
         enc.l0 = asymmetric_linear(2, estimator::HIDDEN_DIM); // large but exact
         enc.l0.weight = enc.l0.weight.map(|w| w.mul_scalar(0.01));
         let dec = Mlp::new(LATENT_DIM, estimator::HIDDEN_DIM, 2, &device);
+        // Latent rows arbitrary; parameter rows the identity, as the filter
+        // requires (a blob without it is refused, checked at the end).
         let f: Vec<f32> = (0..AUG_DIM * AUG_DIM)
-            .map(|k| (k as f32 * 0.37).sin())
+            .map(|k| match (k / AUG_DIM, k % AUG_DIM) {
+                (i, j) if i >= LATENT_DIM => f32::from(u8::from(i == j)),
+                _ => (k as f32 * 0.37).sin(),
+            })
             .collect();
         let parts = BlobParts::new(&enc, &dec, &f);
         let cfg = TrainConfig::default();
@@ -378,7 +383,7 @@ mod tests {
         let back = Model::from_bytes(&bytes).unwrap();
         // Exactly the same numbers come back: the blob stores f32 bits.
         assert_eq!(*back.blob(), blob);
-        for (i, j) in [(0, 0), (3, 17), (17, 2)] {
+        for (i, j) in [(0, 0), (3, 17), (17, 2), (17, 17)] {
             assert_eq!(back.f(i, j), f[i * AUG_DIM + j]);
         }
         // And the estimator's encoder computes burn's forward pass.
@@ -396,5 +401,15 @@ mod tests {
             // Same f32 sums in another order: relative 1e-5 of the magnitude.
             assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{a} vs {b}");
         }
+        // A length that would drift (F[16][16] != 1) is refused.
+        let mut drifting = f.clone();
+        drifting[LATENT_DIM * AUG_DIM + LATENT_DIM] = 0.99;
+        let parts = BlobParts::new(&enc, &dec, &drifting);
+        let blob = parts.blob(&norm, &cfg, filter, params);
+        let bytes = blob_bytes(&blob).unwrap();
+        assert_eq!(
+            Model::from_bytes(&bytes).unwrap_err(),
+            estimator::Error::BlobParamsNotStatic
+        );
     }
 }

@@ -1,0 +1,302 @@
+//! The estimator on a Cortex-M4F, in QEMU (`mps2-an386`, semihosting).
+//!
+//! Reads the shipped weights in place (`include_bytes!`), filters the test
+//! rollouts of `rollouts.csv` (embedded by `build.rs`) step by step, and
+//! prints every step's outputs as the hex bits of each `f32`, so that
+//! `host-tests/tests/firmware.rs` can compare them with the host's, then a
+//! readable summary per rollout.
+//!
+//! No panic path: the panic handler calls a function that does not exist,
+//! so the firmware links only if the optimiser removed every path to a
+//! panic, in `Estimator::step`, `Model::from_bytes` and everything else
+//! here. Nothing here uses `core::fmt` (its float formatting has panic
+//! paths); numbers are written by hand.
+//!
+//! Instruction counts: QEMU runs with `-icount shift=0` (one nanosecond of
+//! virtual time per executed instruction) and SysTick counts the 25 MHz
+//! core clock, one tick per 40 instructions. A calibration loop of known
+//! length (`cortex_m::asm::delay`, two instructions per turn) checks the
+//! factor in every run.
+#![no_std]
+#![no_main]
+
+use core::panic::PanicInfo;
+
+use cortex_m::peripheral::SYST;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hio};
+use estimator::{Estimator, Model, Trust};
+
+mod rollouts {
+    include!(concat!(env!("OUT_DIR"), "/rollouts.rs"));
+}
+
+/// The shipped weights, left in flash and read in place.
+static BLOB: &[u8] = include_bytes!("../../../weights/pendulum.kkf");
+
+/// Turns of `asm::delay` in the calibration: `2 (n + 1)` instructions.
+const CALIBRATION_TURNS: u32 = 1_000_000;
+
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    unsafe extern "Rust" {
+        /// Deliberately undefined: referencing it fails the link.
+        fn estimator_firmware_has_a_panic_path() -> !;
+    }
+    // SAFETY: never runs; the firmware links only if no panic is reachable.
+    unsafe { estimator_firmware_has_a_panic_path() }
+}
+
+/// A line being written; full lines are sent over semihosting.
+struct Line {
+    buf: [u8; 200],
+    len: usize,
+}
+
+impl Line {
+    const fn new() -> Self {
+        Line {
+            buf: [0; 200],
+            len: 0,
+        }
+    }
+
+    fn byte(&mut self, b: u8) {
+        if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = b;
+            self.len += 1;
+        }
+    }
+
+    fn str(&mut self, s: &str) -> &mut Self {
+        for b in s.bytes() {
+            self.byte(b);
+        }
+        self
+    }
+
+    fn uint(&mut self, mut v: u64) -> &mut Self {
+        let mut digits = [0u8; 20];
+        let mut n = 0;
+        loop {
+            if let Some(d) = digits.get_mut(n) {
+                *d = b'0' + (v % 10) as u8;
+            }
+            n += 1;
+            v /= 10;
+            if v == 0 || n >= digits.len() {
+                break;
+            }
+        }
+        for i in (0..n).rev() {
+            if let Some(&d) = digits.get(i) {
+                self.byte(d);
+            }
+        }
+        self
+    }
+
+    /// The bits of `x` as 8 hex digits, exact.
+    fn hex(&mut self, x: f32) -> &mut Self {
+        let bits = x.to_bits();
+        for k in (0..8).rev() {
+            let nib = ((bits >> (4 * k)) & 0xf) as u8;
+            self.byte(if nib < 10 {
+                b'0' + nib
+            } else {
+                b'a' + nib - 10
+            });
+        }
+        self.byte(b' ');
+        self
+    }
+
+    /// `x` with four decimals, for people.
+    fn dec(&mut self, x: f32) -> &mut Self {
+        if x.is_nan() {
+            return self.str("nan");
+        }
+        if x < 0.0 {
+            self.byte(b'-');
+        }
+        let scaled = x.abs() * 10_000.0 + 0.5;
+        if !(scaled < 1.0e18) {
+            return self.str("inf");
+        }
+        let v = scaled as u64;
+        self.uint(v / 10_000);
+        self.byte(b'.');
+        let frac = v % 10_000;
+        for div in [1000, 100, 10, 1] {
+            self.byte(b'0' + ((frac / div) % 10) as u8);
+        }
+        self
+    }
+
+    fn send(&mut self) {
+        self.byte(b'\n');
+        if let Ok(mut out) = hio::hstdout() {
+            let _ = out.write_all(self.buf.get(..self.len).unwrap_or(&[]));
+        }
+        self.len = 0;
+    }
+}
+
+/// SysTick ticks elapsed between two readings of the down-counter.
+fn ticks(before: u32, after: u32) -> u32 {
+    before.wrapping_sub(after) & 0x00ff_ffff
+}
+
+fn trust_word(t: Trust) -> &'static str {
+    match t {
+        Trust::Pending => "pending",
+        Trust::Trusted => "trusted",
+        Trust::Untrusted => "untrusted",
+    }
+}
+
+/// Bytes below the stack pointer painted at start to find the stack's
+/// high-water mark (RAM is 4 MiB; the firmware needs far less).
+const PAINT: usize = 64 * 1024;
+const PAINT_WORD: u32 = 0xdead_beef;
+
+/// Fills the `PAINT` bytes below the current stack pointer with a pattern.
+#[inline(never)]
+fn paint_stack() -> usize {
+    let sp = cortex_m::register::msp::read() as usize - 256;
+    let bottom = sp - PAINT;
+    let mut a = bottom;
+    while a < sp {
+        // SAFETY: RAM below the stack pointer, unused so far (the stack
+        // grows down into it; nothing else is placed there).
+        unsafe { core::ptr::write_volatile(a as *mut u32, PAINT_WORD) };
+        a += 4;
+    }
+    sp
+}
+
+/// Stack bytes used below `top` since [`paint_stack`].
+fn stack_used(top: usize) -> usize {
+    let bottom = top - PAINT;
+    let mut a = bottom;
+    // SAFETY: the same painted RAM, read back.
+    while a < top && unsafe { core::ptr::read_volatile(a as *const u32) } == PAINT_WORD {
+        a += 4;
+    }
+    top - a
+}
+
+#[entry]
+fn main() -> ! {
+    let top = paint_stack();
+    let mut line = Line::new();
+    let ok = run(&mut line);
+    line.str("stack used=")
+        .uint(stack_used(top) as u64)
+        .str(" (high-water below main: model, estimator, step)")
+        .send();
+    line.str(if ok { "done" } else { "failed" }).send();
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[inline(never)]
+fn run(line: &mut Line) -> bool {
+    // Proves that the link-time check can fail: with this feature the
+    // firmware holds one reachable panic (an out-of-bounds index) and must
+    // not link (host-tests/tests/firmware.rs checks that it does not).
+    #[cfg(feature = "deliberate-panic")]
+    {
+        let a = [0u8; 2];
+        line.uint(u64::from(a[core::hint::black_box(2usize)]));
+    }
+    let Some(mut cp) = cortex_m::Peripherals::take() else {
+        line.str("error: core peripherals taken").send();
+        return false;
+    };
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST.set_reload(0x00ff_ffff);
+    cp.SYST.clear_current();
+    cp.SYST.enable_counter();
+
+    let before = SYST::get_current();
+    cortex_m::asm::delay(CALIBRATION_TURNS);
+    let after = SYST::get_current();
+    line.str("calibration instructions=")
+        .uint(2 * (u64::from(CALIBRATION_TURNS) + 1))
+        .str(" ticks=")
+        .uint(u64::from(ticks(before, after)))
+        .send();
+
+    let model = match Model::from_bytes(BLOB) {
+        Ok(m) => m,
+        Err(e) => {
+            line.str("error: blob refused: ").str(e.message()).send();
+            return false;
+        }
+    };
+    line.str("sizes blob=")
+        .uint(BLOB.len() as u64)
+        .str(" model=")
+        .uint(core::mem::size_of::<Model>() as u64)
+        .str(" estimator=")
+        .uint(core::mem::size_of::<Estimator>() as u64)
+        .send();
+
+    let mut est = Estimator::new(&model);
+    for (id, xs) in &rollouts::ROLLOUTS {
+        est.reset();
+        let mut step_ticks: u64 = 0;
+        let mut steps: u64 = 0;
+        let mut last = None;
+        for x in xs {
+            let before = SYST::get_current();
+            let out = est.step(x);
+            let after = SYST::get_current();
+            let out = match out {
+                Ok(o) => o,
+                Err(e) => {
+                    line.str("error: step refused: ").str(e.message()).send();
+                    return false;
+                }
+            };
+            // The first step only encodes and sets the prior.
+            if out.t > 0 {
+                step_ticks += u64::from(ticks(before, after));
+                steps += 1;
+            }
+            line.str("step ").uint(u64::from(*id)).str(" ");
+            line.uint(u64::from(out.t)).str(" ");
+            for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
+                line.hex(*v);
+            }
+            line.str(trust_word(out.trust)).send();
+            last = Some(out);
+        }
+        let before = SYST::get_current();
+        let z = model.encode(&model.normalise(&[0.5, -0.25]));
+        let after = SYST::get_current();
+        core::hint::black_box(z);
+        if let Some(out) = last {
+            let p = out.params;
+            line.str("rollout ").uint(u64::from(*id));
+            line.str(" length=").dec(p[0]);
+            line.str(" std=").dec(out.param_std[0]);
+            line.str(" sigma=").dec(out.sigma[0]);
+            line.str(" trust=").str(trust_word(out.trust));
+            line.str(" steps=").uint(steps);
+            line.str(" step_ticks=").uint(step_ticks);
+            line.str(" encode_ticks=")
+                .uint(u64::from(ticks(before, after)));
+            line.send();
+        }
+    }
+    true
+}

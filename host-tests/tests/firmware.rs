@@ -1,0 +1,235 @@
+//! The firmware example (`estimator/firmware`) in QEMU against the host.
+//!
+//! The firmware filters the rollouts of `estimator/firmware/rollouts.csv`
+//! on an emulated Cortex-M4F (`qemu-system-arm -M mps2-an386`) and prints
+//! every step's outputs as `f32` bits; this test runs the same estimator
+//! on the host over the same `f32` measurements and compares.
+//!
+//! QEMU and the thumbv7em target are required where `KOOPMAN_REQUIRE_QEMU`
+//! is set (`.ci/run` sets it); elsewhere, without them, the tests that need
+//! them say so and return.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use estimator::{Estimator, Model, Trust};
+use host_tests::{root, shipped_blob};
+use trainer::data::{TEST_LENGTHS, TEST_PER_LENGTH, test_set};
+
+/// Steps per rollout in the firmware: the protocol's estimation window.
+const STEPS: usize = 64;
+/// Which of the 10 test rollouts per length the firmware filters
+/// (`theta_0 = pi/2 + k 0.4 pi / 9`).
+const K: usize = 4;
+/// Instructions per SysTick tick: `-icount shift=0` is 1 ns of virtual
+/// time per instruction, SysTick counts the 25 MHz core clock.
+const INSTRUCTIONS_PER_TICK: u64 = 40;
+
+fn firmware_dir() -> PathBuf {
+    root().join("estimator/firmware")
+}
+
+/// The firmware's data: the first `STEPS` rows of rollout `k = K` at each
+/// test length, from the trainer's own test set.
+fn expected_csv() -> String {
+    let ds = test_set(0, &TEST_LENGTHS, &[]);
+    let mut s = String::from("rollout,t,theta,theta_dot\n");
+    for li in 0..TEST_LENGTHS.len() {
+        let r = &ds.rollouts[li * TEST_PER_LENGTH + K];
+        for (t, x) in r.t.iter().zip(&r.xs).take(STEPS) {
+            s.push_str(&format!("{},{:.6},{},{}\n", r.id, t, x[0], x[1]));
+        }
+    }
+    s
+}
+
+#[test]
+fn firmware_rollouts_are_the_protocol_test_set() {
+    let path = firmware_dir().join("rollouts.csv");
+    let want = expected_csv();
+    if std::env::var_os("KOOPMAN_BLESS").is_some() {
+        std::fs::write(&path, &want).unwrap();
+    }
+    let have = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        have == want,
+        "{} differs from the test set (KOOPMAN_BLESS=1 rewrites it)",
+        path.display()
+    );
+}
+
+/// `(rollout id, measurements)` parsed as `f32` straight from the text, as
+/// the firmware's build script does.
+fn rollouts_f32(path: &Path) -> Vec<(u32, Vec<[f32; 2]>)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out: Vec<(u32, Vec<[f32; 2]>)> = Vec::new();
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let id: u32 = f[0].parse().unwrap();
+        let x = [f[2].parse().unwrap(), f[3].parse().unwrap()];
+        match out.last_mut() {
+            Some((last, xs)) if *last == id => xs.push(x),
+            _ => out.push((id, vec![x])),
+        }
+    }
+    out
+}
+
+/// Whether `tool` is here; where it is not, the test says so and is
+/// skipped, unless `KOOPMAN_REQUIRE_QEMU` is set (`.ci/run`), which fails it.
+fn have(tool: &str, found: bool, install: &str) -> bool {
+    if !found {
+        assert!(
+            std::env::var_os("KOOPMAN_REQUIRE_QEMU").is_none(),
+            "KOOPMAN_REQUIRE_QEMU is set but {tool} is missing ({install})"
+        );
+        eprintln!("SKIPPED: {tool} is missing ({install})");
+    }
+    found
+}
+
+fn have_thumb_target() -> bool {
+    let found = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("thumbv7em-none-eabihf"));
+    have(
+        "the thumbv7em-none-eabihf target",
+        found,
+        "rustup target add thumbv7em-none-eabihf",
+    )
+}
+
+fn have_qemu() -> bool {
+    let found = Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    have_thumb_target() && have("qemu-system-arm", found, "apt-get install qemu-system-arm")
+}
+
+fn trust_word(t: Trust) -> &'static str {
+    match t {
+        Trust::Pending => "pending",
+        Trust::Trusted => "trusted",
+        Trust::Untrusted => "untrusted",
+    }
+}
+
+fn field<'a>(line: &'a str, key: &str) -> &'a str {
+    line.split_whitespace()
+        .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+        .unwrap_or_else(|| panic!("no {key}= in {line:?}"))
+}
+
+/// The firmware's panic handler calls an undefined symbol, so it links only
+/// if no panic is reachable. This builds it with one deliberate panic and
+/// checks that the link fails on that symbol: the check can fail.
+#[test]
+fn the_no_panic_link_check_catches_a_panic() {
+    if !have_thumb_target() {
+        return;
+    }
+    let out = Command::new(env!("CARGO"))
+        .args(["build", "--release", "--features", "deliberate-panic"])
+        .env(
+            "CARGO_TARGET_DIR",
+            firmware_dir().join("target/deliberate-panic"),
+        )
+        .current_dir(firmware_dir())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "a firmware with a panic linked");
+    assert!(
+        stderr.contains("undefined symbol: estimator_firmware_has_a_panic_path"),
+        "the build failed for another reason:\n{stderr}"
+    );
+}
+
+#[test]
+fn firmware_in_qemu_matches_the_host() {
+    if !have_qemu() {
+        return;
+    }
+    let out = Command::new(env!("CARGO"))
+        .args(["run", "--release", "--quiet"])
+        .current_dir(firmware_dir())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "firmware failed ({}):\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.last().copied(), Some("done"), "{stdout}");
+    assert!(
+        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 5,
+        "{stdout}"
+    );
+
+    // The tick-to-instruction factor, checked against a loop of known length.
+    let cal = lines.iter().find(|l| l.starts_with("calibration")).unwrap();
+    let cal_instr: u64 = field(cal, "instructions").parse().unwrap();
+    let cal_ticks: u64 = field(cal, "ticks").parse().unwrap();
+    assert!(
+        (cal_ticks * INSTRUCTIONS_PER_TICK).abs_diff(cal_instr) <= INSTRUCTIONS_PER_TICK,
+        "calibration: {cal_instr} instructions took {cal_ticks} ticks"
+    );
+
+    // Host outputs for the same f32 measurements.
+    let bytes = shipped_blob();
+    let model = Model::from_bytes(&bytes).unwrap();
+    let mut est = Estimator::new(&model);
+    let rollouts = rollouts_f32(&firmware_dir().join("rollouts.csv"));
+    let mut steps = lines.iter().filter(|l| l.starts_with("step "));
+    // Tolerance: the same f32 operations in the same order on both sides
+    // (IEEE-754 single precision, no fused multiply-add on either, the
+    // same libm), so the results are expected bit for bit; 1e-6 relative
+    // leaves room for a compiler that contracts differently, and is far
+    // below anything that changes an estimate.
+    let tol = |host: f32| 1e-6 * (1.0 + host.abs());
+    let mut worst: f32 = 0.0;
+    let mut compared = 0;
+    for (id, xs) in &rollouts {
+        est.reset();
+        for x in xs {
+            let h = est.step(x).unwrap();
+            let line = steps.next().expect("fewer step lines than measurements");
+            let w: Vec<&str> = line.split_whitespace().collect();
+            assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
+            assert_eq!(w[2].parse::<u32>().unwrap(), h.t, "{line}");
+            let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
+            for (hex, hv) in w[3..9].iter().zip(host_vals) {
+                let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+                let d = (fv - hv).abs();
+                assert!(d <= tol(*hv), "{line}: firmware {fv} host {hv}");
+                worst = worst.max(d);
+                compared += 1;
+            }
+            assert_eq!(w[9], trust_word(h.trust), "{line}");
+        }
+    }
+    assert!(steps.next().is_none(), "more step lines than measurements");
+
+    let sizes = lines.iter().find(|l| l.starts_with("sizes")).unwrap();
+    let est_bytes: usize = field(sizes, "estimator").parse().unwrap();
+    assert!(est_bytes <= 4096, "estimator state {est_bytes} B > 4 KiB");
+    eprintln!("firmware: {compared} values equal the host's, largest difference {worst:e}");
+    eprintln!("firmware: {sizes}");
+    let stack = lines.iter().find(|l| l.starts_with("stack used")).unwrap();
+    eprintln!("firmware: {stack}");
+    for l in lines.iter().filter(|l| l.starts_with("rollout")) {
+        let steps: u64 = field(l, "steps").parse().unwrap();
+        let ticks: u64 = field(l, "step_ticks").parse().unwrap();
+        let enc: u64 = field(l, "encode_ticks").parse().unwrap();
+        eprintln!(
+            "firmware: {l}\n  => {} instructions per step (encoder alone {})",
+            ticks * INSTRUCTIONS_PER_TICK / steps,
+            enc * INSTRUCTIONS_PER_TICK
+        );
+    }
+}
