@@ -163,3 +163,47 @@ fn simulate_writes_every_slot_and_refuses_nan() {
         Err(Error::NonFiniteInput)
     );
 }
+
+/// Issue 3's accuracy figures on the shipped weights: the mean length
+/// estimate after the 64-step window at L = 2 and 5 is within 10% of the
+/// truth, and sigma at L = 0.5 is at least 5 times sigma at L = 5. At
+/// L = 3.5 the estimate is printed, not asserted: it is 4.23 (21% high), a
+/// known miss of the model (see the README's Results), not of the filter.
+#[test]
+fn length_estimates_and_sigma_on_the_test_set() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let mean_of = |l: f64| {
+        let (mut est_sum, mut sigma_sum) = (0.0, 0.0);
+        for k in 0..10 {
+            let mut est = Estimator::new(&m);
+            let mut last = None;
+            for x in &rollout(l, k)[..64] {
+                last = Some(est.step(x).unwrap());
+            }
+            let out = last.unwrap();
+            est_sum += f64::from(out.params[0]);
+            sigma_sum += f64::from(out.sigma[0]);
+        }
+        (est_sum / 10.0, sigma_sum / 10.0)
+    };
+    let figures: Vec<(f64, (f64, f64))> = TEST_LENGTHS.iter().map(|&l| (l, mean_of(l))).collect();
+    for (l, (e, s)) in &figures {
+        eprintln!(
+            "L = {l}: mean estimate {e:.3} ({:+.1}%), mean sigma {s:.4}",
+            100.0 * (e - l) / l
+        );
+    }
+    for (l, (e, _)) in &figures {
+        if *l == 2.0 || *l == 5.0 {
+            assert!((e - l).abs() <= 0.1 * l, "L = {l}: mean estimate {e}");
+        }
+    }
+    let sigma = |l: f64| figures.iter().find(|f| f.0 == l).unwrap().1.1;
+    assert!(
+        sigma(0.5) >= 5.0 * sigma(5.0),
+        "{} vs {}",
+        sigma(0.5),
+        sigma(5.0)
+    );
+}

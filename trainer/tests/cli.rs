@@ -173,4 +173,8 @@ fn a_broken_csv_is_refused_naming_file_and_line() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.csv:3") && err.contains("theta"), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "nothing is printed for a refused file"
+    );
 }

@@ -1,0 +1,85 @@
+//! Property tests (proptest, its default 256 cases per property, seeded by
+//! proptest's own deterministic runner unless PROPTEST_RNG_SEED says
+//! otherwise).
+
+use estimator::{Error, Estimator, Model};
+use host_tests::shipped_blob;
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+fn blob() -> &'static [u8] {
+    static B: OnceLock<Vec<u8>> = OnceLock::new();
+    B.get_or_init(shipped_blob)
+}
+
+proptest! {
+    /// Any edit of the shipped blob (up to 8 bytes overwritten, then cut
+    /// or extended) is refused with an error, never a panic, unless the
+    /// edit changed nothing.
+    #[test]
+    fn an_edited_blob_is_refused(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        cut in proptest::option::of(any::<prop::sample::Index>()),
+        extra in proptest::collection::vec(any::<u8>(), 0..3),
+    ) {
+        let original = blob();
+        let mut b = original.to_vec();
+        for (at, v) in &edits {
+            let i = at.index(b.len());
+            b[i] = *v;
+        }
+        if let Some(c) = cut {
+            b.truncate(c.index(b.len()));
+        }
+        b.extend_from_slice(&extra);
+        let r = Model::from_bytes(&b);
+        if b.as_slice() == original {
+            prop_assert!(r.is_ok());
+        } else {
+            prop_assert!(r.is_err());
+        }
+    }
+
+    /// Any bytes at all: an error or a model, never a panic.
+    #[test]
+    fn arbitrary_bytes_never_panic(b in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let _ = Model::from_bytes(&b);
+    }
+
+    /// Over any sequence of measurements, finite or not, huge or not: a
+    /// refused one leaves the state exactly as it was, an accepted one
+    /// keeps P symmetric with a positive definite 17x17 block (the
+    /// undeclared second parameter has zero variance) and finite outputs.
+    #[test]
+    fn the_filter_keeps_its_invariants(
+        xs in proptest::collection::vec(
+            prop_oneof![
+                8 => (-4.0f32..4.0, -8.0f32..8.0).prop_map(|(a, b)| [a, b]),
+                1 => (any::<f32>(), any::<f32>()).prop_map(|(a, b)| [a, b]),
+            ],
+            1..40,
+        )
+    ) {
+        let m = Model::from_bytes(blob()).unwrap();
+        let mut est = Estimator::new(&m);
+        for x in &xs {
+            let before = (est.mean(), est.covariance());
+            match est.step(x) {
+                Ok(out) => {
+                    prop_assert!(out.params.iter().chain(&out.param_std).all(|v| v.is_finite()));
+                    let p = est.covariance();
+                    prop_assert_eq!(p, p.transpose());
+                    let block = p.fixed_view::<17, 17>(0, 0).into_owned();
+                    prop_assert!(block.cholesky().is_some());
+                }
+                Err(e) => {
+                    prop_assert!(matches!(
+                        e,
+                        Error::NonFiniteInput | Error::FilterNotPositiveDefinite | Error::FilterNonFinite
+                    ));
+                    prop_assert_eq!((est.mean(), est.covariance()), before);
+                }
+            }
+        }
+    }
+}
