@@ -3,10 +3,27 @@
 use estimator::blob::Activation;
 use serde::{Deserialize, Serialize};
 
+/// Which model a run trains (the protocol's three).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    /// Encoder/decoder, one global `K` over `[y; p]` fitted on batches that
+    /// mix the training lengths (the filter estimates `p`).
+    #[default]
+    Klm,
+    /// The same Koopman model without `p`: curated batches of one length
+    /// each; `K` is identified at test time from latent data.
+    Cbm,
+    /// An MLP that regresses the length from a window of states.
+    Mlp,
+}
+
 /// Everything a training run depends on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct TrainConfig {
+    /// The model trained.
+    pub model: ModelKind,
     /// Seed of the training data and of the weights' initialisation.
     pub seed: u64,
     /// Training lengths, m.
@@ -49,6 +66,7 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
+            model: ModelKind::Klm,
             seed: 42,
             lengths: vec![2.0, 5.0],
             rollouts_per_length: 200,
@@ -72,6 +90,25 @@ impl Default for TrainConfig {
 }
 
 impl TrainConfig {
+    /// The defaults for one kind of model: the MLP regresses from the
+    /// protocol's 64-step window and trains for fewer, cheaper iterations.
+    pub fn for_model(model: ModelKind) -> Self {
+        let base = TrainConfig {
+            model,
+            ..TrainConfig::default()
+        };
+        match model {
+            ModelKind::Klm | ModelKind::Cbm => base,
+            ModelKind::Mlp => TrainConfig {
+                window: 64,
+                batch: 64,
+                hidden: 64,
+                iterations: 4000,
+                ..base
+            },
+        }
+    }
+
     /// Learning rate at iteration `i` (cosine from `lr` to `lr_final`).
     pub fn lr_at(&self, i: usize) -> f64 {
         let f = i as f64 / self.iterations.max(1) as f64;

@@ -4,8 +4,10 @@
 
 use anyhow::{Context, Result};
 use estimator::{Estimator, Model};
+use indicatif::ProgressBar;
 use serde::Serialize;
 
+use crate::baseline::{CbmBaseline, Latents, MlpBaseline};
 use crate::data::Dataset;
 use crate::export::ESTIMATION_STEPS;
 
@@ -28,6 +30,18 @@ pub struct RolloutScore {
     pub trusted: bool,
     /// Simulation MSE with the estimated length.
     pub mse_klm: f64,
+    /// The filter's length estimate after each of `x_0 .. x_63`.
+    pub length_trace: Vec<f32>,
+    /// The correction the filter made to the length at each of those steps.
+    pub corrections: Vec<f32>,
+    /// The MLP's length estimate, when the MLP was scored.
+    pub mlp_est: Option<f32>,
+    /// Simulation MSE of the KLM driven by the MLP's estimate.
+    pub mse_mlp: Option<f64>,
+    /// CBM simulation MSE, `K` from this rollout alone.
+    pub mse_cbm_one_shot: Option<f64>,
+    /// CBM simulation MSE, `K` from the 10 rollouts of this length.
+    pub mse_cbm_few_shot: Option<f64>,
 }
 
 /// Per-length means.
@@ -47,6 +61,14 @@ pub struct LengthScore {
     pub untrusted: usize,
     /// Rollouts at this length.
     pub n: usize,
+    /// Mean MSE of the KLM driven by the MLP's estimate.
+    pub mlp: Option<f64>,
+    /// Mean of the MLP's length estimates.
+    pub mlp_length_est: Option<f64>,
+    /// Mean CBM one-shot MSE.
+    pub cbm_one_shot: Option<f64>,
+    /// Mean CBM few-shot MSE.
+    pub cbm_few_shot: Option<f64>,
 }
 
 /// Normalised-units MSE of a simulation against the truth.
@@ -78,7 +100,8 @@ pub fn estimate(
     last
 }
 
-/// Scores every rollout of a test set.
+/// Scores the KLM on every rollout of a test set (the baselines' fields
+/// stay `None`; [`score_baselines`] fills them).
 pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
     let mut out = Vec::new();
     for r in &ds.rollouts {
@@ -86,11 +109,15 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
         let mse_true = sim_mse(model, &r.xs, [m.length as f32, 0.0])?;
         let mut est = Estimator::new(model);
         let mut last = None;
+        let mut length_trace = Vec::with_capacity(ESTIMATION_STEPS);
+        let mut corrections = Vec::with_capacity(ESTIMATION_STEPS);
         for x in r.xs.iter().take(ESTIMATION_STEPS) {
-            last = Some(
-                est.step(&[x[0] as f32, x[1] as f32])
-                    .map_err(|e| anyhow::anyhow!("{e}"))?,
-            );
+            let o = est
+                .step(&[x[0] as f32, x[1] as f32])
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            length_trace.push(o.params[0]);
+            corrections.push(o.correction[0]);
+            last = Some(o);
         }
         let last = last.context("empty rollout")?;
         let mse_klm = sim_mse(model, &r.xs, last.params)?;
@@ -103,9 +130,62 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
             sigma: last.sigma[0],
             trusted: last.trust == estimator::Trust::Trusted,
             mse_klm,
+            length_trace,
+            corrections,
+            mlp_est: None,
+            mse_mlp: None,
+            mse_cbm_one_shot: None,
+            mse_cbm_few_shot: None,
         });
     }
     Ok(out)
+}
+
+/// Scores the baselines on the same rollouts as `scores` (in the same
+/// order): the MLP's estimate drives the KLM `model`'s simulation; the CBM
+/// identifies `K` from one rollout and from all rollouts of its length.
+pub fn score_baselines(
+    scores: &mut [RolloutScore],
+    ds: &Dataset,
+    model: &Model<'_>,
+    mlp: Option<&MlpBaseline>,
+    cbm: Option<&CbmBaseline>,
+    bar: &ProgressBar,
+) -> Result<()> {
+    anyhow::ensure!(
+        scores.len() == ds.rollouts.len(),
+        "scores of another data set"
+    );
+    if let Some(mlp) = mlp {
+        let xs: Vec<&[[f64; 2]]> = ds.rollouts.iter().map(|r| r.xs.as_slice()).collect();
+        let est = mlp.estimate(&xs)?;
+        for ((s, r), e) in scores.iter_mut().zip(&ds.rollouts).zip(est) {
+            s.mlp_est = Some(e);
+            s.mse_mlp = Some(sim_mse(model, &r.xs, [e, 0.0])?);
+        }
+    }
+    if let Some(cbm) = cbm {
+        let latents = ds
+            .rollouts
+            .iter()
+            .map(|r| cbm.encode(&r.xs[..ESTIMATION_STEPS.min(r.xs.len())]))
+            .collect::<Result<Vec<_>>>()?;
+        for (i, r) in ds.rollouts.iter().enumerate() {
+            let k_one = cbm.identify(&[&latents[i]])?;
+            let length = scores[i].length;
+            let same: Vec<&Latents> = scores
+                .iter()
+                .zip(&latents)
+                .filter(|(s, _)| s.length == length)
+                .map(|(_, l)| l)
+                .collect();
+            let k_few = cbm.identify(&same)?;
+            scores[i].mse_cbm_one_shot = Some(cbm.sim_mse(&k_one, &r.xs)?);
+            scores[i].mse_cbm_few_shot = Some(cbm.sim_mse(&k_few, &r.xs)?);
+            bar.inc(1);
+        }
+    }
+    Ok(())
 }
 
 /// Means per length, in order of first appearance.
@@ -121,6 +201,10 @@ pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
         .map(|l| {
             let v: Vec<&RolloutScore> = scores.iter().filter(|s| s.length == l).collect();
             let n = v.len() as f64;
+            let mean_of = |f: &dyn Fn(&RolloutScore) -> Option<f64>| -> Option<f64> {
+                let vals: Option<Vec<f64>> = v.iter().map(|s| f(s)).collect();
+                vals.map(|x| x.iter().sum::<f64>() / n)
+            };
             LengthScore {
                 length: l,
                 mse_true: v.iter().map(|s| s.mse_true).sum::<f64>() / n,
@@ -129,6 +213,10 @@ pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
                 klm_sigma: v.iter().map(|s| s.sigma as f64).sum::<f64>() / n,
                 untrusted: v.iter().filter(|s| !s.trusted).count(),
                 n: v.len(),
+                mlp: mean_of(&|s| s.mse_mlp),
+                mlp_length_est: mean_of(&|s| s.mlp_est.map(f64::from)),
+                cbm_one_shot: mean_of(&|s| s.mse_cbm_one_shot),
+                cbm_few_shot: mean_of(&|s| s.mse_cbm_few_shot),
             }
         })
         .collect()

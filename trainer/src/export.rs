@@ -6,19 +6,19 @@
 //! residual `phi(x_{t+1}) - K g_t`. The trust threshold is calibrated by
 //! running the estimator crate's own filter on the training rollouts.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use burn::nn::Linear;
 use burn::tensor::{Tensor, TensorData};
 use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, Layer, ParamSpec};
 use estimator::{AUG_DIM, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use crate::config::TrainConfig;
+use crate::config::{ModelKind, TrainConfig};
 use crate::data::Dataset;
 use crate::io::write_atomic;
-use crate::model::{Klm, Mlp, fit_koopman};
+use crate::model::{Klm, Mlp, Regressor, fit_koopman};
 use crate::train::{self, Norm, RunPaths, RunState};
 
 /// Protocol: the filter sees `x_0 .. x_63`.
@@ -157,16 +157,87 @@ pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
     Ok(out.sigma[0])
 }
 
-/// Exports run `dir` to `out`.
-pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
+/// A baseline's weights as exported: the burnpack beside this sidecar, and
+/// what is needed to run it (the config names the model and its sizes).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BaselineInfo {
+    /// The run's config.
+    pub config: TrainConfig,
+    /// The run's normalisation.
+    pub norm: Norm,
+    /// Iterations trained.
+    pub iteration: usize,
+    /// Training wall time, s.
+    pub train_seconds: f64,
+    /// Size of the burnpack, bytes.
+    pub bytes: usize,
+}
+
+/// The sidecar of a baseline's burnpack (`cbm.bpk` -> `cbm.json`).
+pub fn baseline_sidecar(weights: &Path) -> PathBuf {
+    weights.with_extension("json")
+}
+
+/// Reads a run's config and state.
+fn run_files(dir: &Path) -> Result<(TrainConfig, RunState)> {
     let paths = RunPaths::new(dir);
     let cfg: TrainConfig = serde_json::from_str(
         &std::fs::read_to_string(&paths.config)
-            .with_context(|| format!("{}", paths.config.display()))?,
-    )?;
-    let state: RunState = serde_json::from_str(&std::fs::read_to_string(&paths.state)?)?;
+            .with_context(|| format!("{}: cannot read", paths.config.display()))?,
+    )
+    .with_context(|| format!("{}", paths.config.display()))?;
+    let state: RunState = serde_json::from_str(
+        &std::fs::read_to_string(&paths.state)
+            .with_context(|| format!("{}: cannot read", paths.state.display()))?,
+    )
+    .with_context(|| format!("{}", paths.state.display()))?;
+    Ok((cfg, state))
+}
+
+/// The model kind of run `dir`.
+pub fn run_kind(dir: &Path) -> Result<ModelKind> {
+    Ok(run_files(dir)?.0.model)
+}
+
+/// Exports a baseline run (CBM or MLP): its burnpack to `out` and a
+/// [`BaselineInfo`] beside it. The weights are checked to load first.
+pub fn export_baseline(dir: &Path, out: &Path) -> Result<BaselineInfo> {
+    let (cfg, state) = run_files(dir)?;
+    let paths = RunPaths::new(dir);
     let device = train::device();
-    let model = train::load_model(&paths, &cfg, &device)?;
+    match cfg.model {
+        ModelKind::Cbm => drop(train::load_model::<Klm>(&paths, &cfg, &device)?),
+        ModelKind::Mlp => drop(train::load_model::<Regressor>(&paths, &cfg, &device)?),
+        ModelKind::Klm => anyhow::bail!("{}: a KLM run exports to a blob", dir.display()),
+    }
+    let bytes = std::fs::read(&paths.model)?;
+    write_atomic(out, &bytes)?;
+    let info = BaselineInfo {
+        config: cfg,
+        norm: state.norm,
+        iteration: state.iteration,
+        train_seconds: state.train_seconds,
+        bytes: bytes.len(),
+    };
+    write_atomic(
+        &baseline_sidecar(out),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )?;
+    Ok(info)
+}
+
+/// Exports KLM run `dir` to the blob `out`.
+pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
+    let paths = RunPaths::new(dir);
+    let (cfg, state) = run_files(dir)?;
+    anyhow::ensure!(
+        cfg.model == ModelKind::Klm,
+        "{}: a {:?} run exports with export_baseline",
+        dir.display(),
+        cfg.model
+    );
+    let device = train::device();
+    let model: Klm = train::load_model(&paths, &cfg, &device)?;
     let ds = train::training_data(&cfg);
     let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
     let parts = BlobParts::new(&model.enc, &model.dec, &f);
@@ -259,21 +330,22 @@ pub fn global_koopman(
     let x = Tensor::<3>::from_data(TensorData::new(x, [b, t, 2]), &device);
     let p = Tensor::<2>::from_data(TensorData::new(p, [b, 2]), &device);
     let y = model.enc.forward(x, cfg.activation).detach();
-    let k = fit_koopman(y.clone(), p.clone(), cfg.ridge);
+    let k = fit_koopman(y.clone(), Some(p.clone()), cfg.ridge);
+    let kct = k.ct.context("the KLM's K has a parameter block")?;
     let at: Vec<f32> =
         k.at.clone()
             .into_data()
             .try_to_vec::<f32>()
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let ct: Vec<f32> =
-        k.ct.clone()
-            .into_data()
-            .try_to_vec::<f32>()
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let ct: Vec<f32> = kct
+        .clone()
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let l = LATENT_DIM;
     // One-step residual.
     let g_y = y.clone().slice([0..b, 0..t - 1, 0..l]);
-    let pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(k.ct).unsqueeze_dim::<3>(1);
+    let pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(kct).unsqueeze_dim::<3>(1);
     let res = (y.slice([0..b, 1..t, 0..l]) - pred)
         .powi_scalar(2)
         .reshape([b * (t - 1), l])

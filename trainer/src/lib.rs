@@ -2,6 +2,7 @@
 //! KLM trained on burn, the weights export and the protocol's scoring.
 //! The `koopman` binary (`main.rs`) is a thin command line over this.
 
+pub mod baseline;
 pub mod config;
 pub mod data;
 pub mod eval;
@@ -9,5 +10,8 @@ pub mod export;
 pub mod io;
 pub mod lstsq;
 pub mod model;
+pub mod plot;
+pub mod report;
 pub mod sim;
+pub mod table1;
 pub mod train;

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
-use trainer::config::TrainConfig;
+use trainer::config::{ModelKind, TrainConfig};
 use trainer::sim::Effect;
-use trainer::{data, eval, export, train};
+use trainer::{data, eval, export, report, table1, train};
 
 #[derive(Parser)]
 #[command(
@@ -46,6 +46,9 @@ enum Cmd {
         /// Run directory (config, checkpoints, log).
         #[arg(long, default_value = "runs/pendulum")]
         run: PathBuf,
+        /// The model to train (its defaults apply unless --config is given).
+        #[arg(long, value_enum, default_value_t = ModelKind::Klm)]
+        model: ModelKind,
         /// Continue the run in --run from its last checkpoint.
         #[arg(long)]
         resume: bool,
@@ -68,13 +71,15 @@ enum Cmd {
         #[arg(long)]
         quiet: bool,
     },
-    /// Exports a run's weights to one blob.
+    /// Exports a run's weights: a KLM to one blob, a baseline (CBM, MLP) to
+    /// its burnpack with a JSON sidecar.
     Export {
         /// Run directory.
         run: PathBuf,
-        /// Blob path.
-        #[arg(long, default_value = "weights/pendulum.kkf")]
-        out: PathBuf,
+        /// Output path (default: weights/pendulum.kkf, weights/cbm.bpk or
+        /// weights/mlp.bpk by the run's model).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Runs the on-device estimator over each rollout of a CSV.
     Estimate {
@@ -90,17 +95,40 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
-    /// Scores a blob on the protocol's test set.
+    /// Scores every model of the protocol on the test set: Table 1 with the
+    /// paper's figures beside ours.
     Evaluate {
-        /// Weights blob.
+        /// KLM weights blob.
         #[arg(long, default_value = "weights/pendulum.kkf")]
         weights: PathBuf,
+        /// MLP baseline (burnpack with its .json).
+        #[arg(long, default_value = "weights/mlp.bpk")]
+        mlp: PathBuf,
+        /// CBM baseline (burnpack with its .json).
+        #[arg(long, default_value = "weights/cbm.bpk")]
+        cbm: PathBuf,
+        /// Score the KLM alone.
+        #[arg(long)]
+        klm_only: bool,
         /// Test CSV (with sidecar); the protocol's test set when absent.
         #[arg(long)]
         data: Option<PathBuf>,
-        /// Print JSON.
+        /// Write table1.json, table1.md, report.json and the figures here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Train and score this many seeds (42, 43, ...) into --out/seeds
+        /// instead of scoring the given weights.
+        #[arg(long)]
+        seeds: Option<usize>,
+        /// With --seeds: the KLM's and CBM's iterations.
+        #[arg(long)]
+        iterations: Option<usize>,
+        /// Print table1.json instead of the markdown table.
         #[arg(long)]
         json: bool,
+        /// No progress bars.
+        #[arg(long)]
+        quiet: bool,
     },
 }
 
@@ -147,6 +175,7 @@ fn run(cmd: Cmd) -> Result<()> {
         }
         Cmd::Train {
             run,
+            model,
             resume,
             seed,
             iterations,
@@ -159,7 +188,7 @@ fn run(cmd: Cmd) -> Result<()> {
                 Some(p) => serde_json::from_str(
                     &std::fs::read_to_string(&p).with_context(|| format!("{}", p.display()))?,
                 )?,
-                None => TrainConfig::default(),
+                None => TrainConfig::for_model(model),
             };
             if let Some(v) = seed {
                 cfg.seed = v;
@@ -179,26 +208,41 @@ fn run(cmd: Cmd) -> Result<()> {
             );
             let state = train::train(&run, cfg, resume, quiet)?;
             println!(
-                "trained {} iterations in {:.1} s ({:.4} s/iteration); losses total {:.3e} rec {:.3e} pred {:.3e} lin {:.3e}",
+                "trained {} iterations in {:.1} s ({:.4} s/iteration); last batch losses {:.3e} (parts {:.3e} {:.3e} {:.3e}, named in {})",
                 state.iteration,
                 state.train_seconds,
                 state.train_seconds / state.iteration.max(1) as f64,
                 state.last_losses[0],
                 state.last_losses[1],
                 state.last_losses[2],
-                state.last_losses[3]
+                state.last_losses[3],
+                train::RunPaths::new(&run).log.display()
             );
         }
-        Cmd::Export { run, out } => {
-            let info = export::export(&run, &out)?;
-            println!(
-                "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
-                out.display(),
-                info.blob_bytes,
-                info.sigma_threshold,
-                info.train_sigma_max
-            );
-        }
+        Cmd::Export { run, out } => match export::run_kind(&run)? {
+            ModelKind::Klm => {
+                let out = out.unwrap_or_else(|| "weights/pendulum.kkf".into());
+                let info = export::export(&run, &out)?;
+                println!(
+                    "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
+                    out.display(),
+                    info.blob_bytes,
+                    info.sigma_threshold,
+                    info.train_sigma_max
+                );
+            }
+            kind => {
+                let name = if kind == ModelKind::Cbm { "cbm" } else { "mlp" };
+                let out = out.unwrap_or_else(|| format!("weights/{name}.bpk").into());
+                let info = export::export_baseline(&run, &out)?;
+                println!(
+                    "wrote {} ({} bytes) and {}",
+                    out.display(),
+                    info.bytes,
+                    export::baseline_sidecar(&out).display()
+                );
+            }
+        },
         Cmd::Estimate {
             weights,
             data,
@@ -238,22 +282,46 @@ fn run(cmd: Cmd) -> Result<()> {
         }
         Cmd::Evaluate {
             weights,
+            mlp,
+            cbm,
+            klm_only,
             data,
+            out,
+            seeds,
+            iterations,
             json,
+            quiet,
         } => {
-            let bytes = read_blob(&weights)?;
-            let model =
-                estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
-            let ds = match data {
-                Some(p) => data::read(&p, 128)?,
-                None => data::test_set(0, &data::TEST_LENGTHS, &[]),
+            let test = report::test_data(data.as_deref())?;
+            let command = std::env::args().collect::<Vec<_>>().join(" ");
+            let sets = match seeds {
+                Some(n) => {
+                    let dir = out
+                        .as_ref()
+                        .context("--seeds trains into --out DIR/seeds: give --out")?
+                        .join("seeds");
+                    (0..n as u64)
+                        .map(|k| report::train_seed(&dir, 42 + k, iterations, quiet))
+                        .collect::<Result<Vec<_>>>()?
+                }
+                None => vec![report::Weights {
+                    seed: report::seed_of(&weights),
+                    klm: weights,
+                    mlp: (!klm_only).then_some(mlp),
+                    cbm: (!klm_only).then_some(cbm),
+                }],
             };
-            let scores = eval::score(&model, &ds)?;
-            let rows = eval::by_length(&scores);
+            let r = report::evaluate(&sets, &test, out.as_deref(), &command, quiet)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&rows)?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&table1::to_json(&r.table))?
+                );
             } else {
-                print!("{}", eval::table(&rows));
+                print!("{}", report::markdown(&r));
+                if let Some(dir) = &out {
+                    println!("\nwrote {} (in {:.1} s)", dir.display(), r.seconds);
+                }
             }
         }
     }

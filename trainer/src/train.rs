@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
@@ -14,10 +13,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::config::TrainConfig;
+use crate::config::{ModelKind, TrainConfig};
 use crate::data::{self, Dataset};
 use crate::io::write_atomic;
-use crate::model::Klm;
+use crate::model::{Klm, Regressor, Trainable};
 
 /// Per-dimension normalisation fitted on the training set.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -67,7 +66,7 @@ pub struct RunState {
     pub train_seconds: f64,
     /// Normalisation of the run.
     pub norm: Norm,
-    /// Last losses `[total, rec, pred, lin]`.
+    /// Last losses `[total, parts..]` (parts named in the log's header).
     pub last_losses: [f64; 4],
 }
 
@@ -144,6 +143,9 @@ impl Batcher {
 
     /// Batch `iteration`'s windows, drawn from a generator seeded with the run's
     /// seed and the iteration (so a resumed run draws the same batches).
+    /// Stratified (each length in turn) for the KLM and the MLP; curated for
+    /// the CBM: every window of a batch has the same length, the lengths
+    /// taking turns from one batch to the next.
     pub fn batch(
         &self,
         cfg: &TrainConfig,
@@ -156,8 +158,10 @@ impl Batcher {
         let t = cfg.window;
         let mut x = Vec::with_capacity(cfg.batch * t * 2);
         let mut p = Vec::with_capacity(cfg.batch * 2);
+        let curated = cfg.model == ModelKind::Cbm;
         for b in 0..cfg.batch {
-            let stratum = &self.strata[b % self.strata.len()];
+            let k = if curated { iteration } else { b };
+            let stratum = &self.strata[k % self.strata.len()];
             let r = stratum[rng.random_range(0..stratum.len())];
             let len = self.xs[r].len();
             let start = rng.random_range(0..=len - t);
@@ -173,9 +177,9 @@ impl Batcher {
     }
 }
 
-fn save_checkpoint(
+fn save_checkpoint<M: Trainable>(
     paths: &RunPaths,
-    model: &Klm,
+    model: &M,
     optim_bytes: Bytes,
     state: &RunState,
 ) -> Result<()> {
@@ -194,19 +198,43 @@ fn save_checkpoint(
 }
 
 /// Loads the model of a run.
-pub fn load_model(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<Klm> {
-    let bytes =
-        std::fs::read(&paths.model).with_context(|| format!("{}", paths.model.display()))?;
-    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    Klm::new(2, cfg.hidden, estimator::LATENT_DIM, device)
-        .try_load_record(record)
-        .map_err(|e| anyhow::anyhow!("{}: {e:?}", paths.model.display()))
+pub fn load_model<M: Trainable>(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<M> {
+    load_module(&paths.model, cfg, device)
 }
 
-/// Trains into `dir`; with `resume`, continues from its last checkpoint
-/// (using the config saved there).
+/// Loads a module saved as burnpack bytes at `path`.
+pub fn load_module<M: Trainable>(path: &Path, cfg: &TrainConfig, device: &Device) -> Result<M> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))?;
+    M::init(cfg, device)
+        .try_load_record(record)
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))
+}
+
+/// Trains the model `cfg.model` into `dir`; with `resume`, continues from its
+/// last checkpoint (using the config saved there, whose model kind wins).
 pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<RunState> {
+    let kind = if resume {
+        let saved: TrainConfig = serde_json::from_str(
+            &std::fs::read_to_string(RunPaths::new(dir).config).context("no run to resume")?,
+        )?;
+        saved.model
+    } else {
+        cfg.model
+    };
+    match kind {
+        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, quiet),
+        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, quiet),
+    }
+}
+
+fn train_model<M: Trainable>(
+    dir: &Path,
+    cfg: TrainConfig,
+    resume: bool,
+    quiet: bool,
+) -> Result<RunState> {
     let paths = RunPaths::new(dir);
     let device = device();
     let saved: Option<TrainConfig> = if resume {
@@ -222,7 +250,7 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
         let state: RunState = serde_json::from_str(
             &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
         )?;
-        let model = load_model(&paths, &cfg, &device)?;
+        let model: M = load_model(&paths, &cfg, &device)?;
         let optim = AdamConfig::new()
             .init()
             .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
@@ -251,7 +279,7 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             serde_json::to_string_pretty(&cfg)?.as_bytes(),
         )?;
         device.seed(cfg.seed);
-        let model = Klm::new(2, cfg.hidden, estimator::LATENT_DIM, &device);
+        let model = M::init(&cfg, &device);
         let norm = Norm::fit(&ds);
         let state = RunState {
             iteration: 0,
@@ -259,7 +287,11 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             norm,
             last_losses: [0.0; 4],
         };
-        write_atomic(&paths.log, b"iteration,total,rec,pred,lin,seconds\n")?;
+        let [a, b, c] = M::PARTS;
+        write_atomic(
+            &paths.log,
+            format!("iteration,total,{a},{b},{c},seconds\n").as_bytes(),
+        )?;
         (cfg, model, AdamConfig::new().init(), state)
     };
     if cfg.threads > 0 {
@@ -285,9 +317,9 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
     let base_seconds = state.train_seconds;
     while state.iteration < cfg.iterations {
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
-        let l = model.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin);
-        let values =
-            [&l.total, &l.rec, &l.pred, &l.lin].map(|t| t.clone().into_scalar::<f32>() as f64);
+        let l = model.batch_losses(x, p, &cfg);
+        let [pa, pb, pc] = &l.parts;
+        let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
         let grads = GradientsParams::from_grads(l.total.backward(), &model);
         model = optim.step(cfg.lr_at(state.iteration), model, grads);
         state.iteration += 1;
@@ -298,8 +330,12 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
             state.iteration, values[0], values[1], values[2], values[3], state.train_seconds
         ));
         bar.set_message(format!(
-            "loss {:.2e} rec {:.2e} pred {:.2e} lin {:.2e}",
-            values[0], values[1], values[2], values[3]
+            "loss {:.2e} {} {:.2e} {} {:.2e}",
+            values[0],
+            M::PARTS[0],
+            values[1],
+            M::PARTS[1],
+            values[2]
         ));
         bar.inc(1);
         if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
@@ -313,4 +349,32 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
     }
     bar.finish();
     Ok(state)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ModelKind;
+
+    /// The lengths of the windows in one batch (read back from `p`).
+    fn batch_lengths(kind: ModelKind, iteration: usize) -> Vec<f32> {
+        let cfg = TrainConfig {
+            rollouts_per_length: 6,
+            batch: 8,
+            ..TrainConfig::for_model(kind)
+        };
+        let ds = training_data(&cfg);
+        let b = Batcher::new(&ds, &Norm::fit(&ds)).unwrap();
+        let (_, p) = b.batch(&cfg, iteration, &Device::flex());
+        let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
+        p.chunks(2).map(|c| c[0]).collect()
+    }
+
+    #[test]
+    fn klm_batches_mix_lengths_and_cbm_batches_hold_one() {
+        assert_eq!(batch_lengths(ModelKind::Klm, 0), [2.0, 5.0].repeat(4));
+        assert_eq!(batch_lengths(ModelKind::Cbm, 0), [2.0; 8]);
+        assert_eq!(batch_lengths(ModelKind::Cbm, 1), [5.0; 8]);
+        assert_eq!(batch_lengths(ModelKind::Mlp, 3), [2.0, 5.0].repeat(4));
+    }
 }

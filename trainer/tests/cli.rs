@@ -178,3 +178,121 @@ fn a_broken_csv_is_refused_naming_file_and_line() {
         "nothing is printed for a refused file"
     );
 }
+
+/// The repository root (the shipped weights live there).
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+#[test]
+fn evaluate_writes_table1_its_report_and_the_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("eval");
+    let text = run_ok(
+        koopman()
+            .current_dir(root())
+            .args(["evaluate", "--quiet", "--out"])
+            .arg(&out),
+    );
+    assert!(text.contains("| L | CBM one-shot | CBM few-shot | MLP | KLM | KLM sigma"));
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap()).unwrap();
+    let keys: Vec<&String> = t.as_object().unwrap().keys().collect();
+    assert_eq!(keys, ["0.5", "1", "2", "3.5", "5"]);
+    for (l, row) in t.as_object().unwrap() {
+        for col in ["cbm_one_shot", "cbm_few_shot", "mlp", "klm", "klm_sigma"] {
+            let v = row[col]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{l}: {col} missing"));
+            assert!(v >= 0.0, "{l}: {col} = {v}");
+        }
+        assert_eq!(row["n"], 10);
+        assert!(row["paper"]["klm"].is_f64());
+    }
+    // The filter's sigma is larger out of distribution (the paper's finding,
+    // and what the trust verdict rests on).
+    assert!(t["0.5"]["klm_sigma"].as_f64() > t["5"]["klm_sigma"].as_f64());
+    let md = std::fs::read_to_string(out.join("table1.md")).unwrap();
+    assert!(md.contains("ROC AUC") && md.contains("| goal | met |"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rollouts = report["seeds"][0]["rollouts"].as_array().unwrap();
+    assert_eq!(rollouts.len(), 50);
+    assert_eq!(rollouts[0]["length_trace"].as_array().unwrap().len(), 64);
+    let auc = report["seeds"][0]["roc_auc"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&auc));
+    for png in [
+        "phase_portraits.png",
+        "length_estimates.png",
+        "corrections.png",
+        "mlp_predictions.png",
+        "trajectories.png",
+    ] {
+        let bytes = std::fs::read(out.join(png)).unwrap();
+        assert!(
+            bytes.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "{png} is not a PNG"
+        );
+        assert!(bytes.len() > 10_000, "{png}: only {} bytes", bytes.len());
+    }
+}
+
+#[test]
+fn baselines_train_export_and_score() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (model, iterations) in [("mlp", "300"), ("cbm", "3")] {
+        run_ok(
+            koopman()
+                .args([
+                    "train",
+                    "--quiet",
+                    "--model",
+                    model,
+                    "--iterations",
+                    iterations,
+                    "--run",
+                ])
+                .arg(d.join(model)),
+        );
+        let text = run_ok(
+            koopman()
+                .arg("export")
+                .arg(d.join(model))
+                .arg("--out")
+                .arg(d.join(format!("{model}.bpk"))),
+        );
+        assert!(text.contains(&format!("{model}.json")), "{text}");
+    }
+    let cfg: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("mlp.json")).unwrap()).unwrap();
+    assert_eq!(cfg["config"]["model"], "mlp");
+    assert_eq!(cfg["config"]["window"], 64);
+    let blob = root().join("weights/pendulum.kkf");
+    let text = run_ok(
+        koopman()
+            .args(["evaluate", "--quiet", "--json", "--weights"])
+            .arg(&blob)
+            .arg("--mlp")
+            .arg(d.join("mlp.bpk"))
+            .arg("--cbm")
+            .arg(d.join("cbm.bpk")),
+    );
+    let t: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // 300 iterations teach the MLP the two training lengths roughly: its
+    // mean estimate at L = 5 is nearer 5 than 2 (an untrained one answers ~0).
+    let est = t["5"]["mlp_length_est"].as_f64().unwrap();
+    assert!(est > 3.5, "MLP estimate at L = 5: {est}");
+    assert!(t["2"]["cbm_few_shot"].as_f64().is_some());
+    // A CBM file where the MLP is expected is refused, naming the kind.
+    let out = koopman()
+        .args(["evaluate", "--quiet", "--weights"])
+        .arg(&blob)
+        .arg("--mlp")
+        .arg(d.join("cbm.bpk"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("Cbm") && err.contains("Mlp"), "{err}");
+}
