@@ -5,8 +5,10 @@
 pub mod baseline;
 pub mod config;
 pub mod data;
+pub mod diagnose;
 pub mod eval;
 pub mod export;
+pub mod import;
 pub mod io;
 pub mod lstsq;
 pub mod model;

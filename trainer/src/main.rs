@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 
 use trainer::config::{ModelKind, TrainConfig};
 use trainer::sim::Effect;
-use trainer::{data, eval, export, report, table1, train};
+use trainer::{data, diagnose, eval, export, import, report, table1, train};
 
 #[derive(Parser)]
 #[command(
@@ -94,6 +94,49 @@ enum Cmd {
         /// One JSON object per rollout and line.
         #[arg(long)]
         json: bool,
+    },
+    /// Turns measured recordings into the project's CSV (rollouts 1, 2, ...).
+    Import {
+        /// Recordings: the rotary-encoder logger's format, or a CSV with a
+        /// header `t,theta[,theta_dot]` or `theta[,theta_dot]`.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output CSV (a JSON sidecar is written beside it).
+        #[arg(long)]
+        out: PathBuf,
+        /// Angle unit of a plain CSV (the encoder format is in degrees).
+        #[arg(long, value_enum, default_value_t = import::Unit::Radians)]
+        unit: import::Unit,
+        /// Sample rate, Hz, of a plain CSV without a t column.
+        #[arg(long)]
+        rate: Option<f64>,
+        /// Output interval, s (the model's dt).
+        #[arg(long, default_value_t = trainer::sim::DT)]
+        dt: f64,
+        /// Drop the first S seconds.
+        #[arg(long, default_value_t = 0.0)]
+        start: f64,
+        /// Keep at most S seconds.
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Half-width of the smoothing differentiator's window, s.
+        #[arg(long, default_value_t = 0.01)]
+        smooth: f64,
+    },
+    /// Runs the estimator on data, then finds which physical effect explains
+    /// what the model leaves.
+    Diagnose {
+        /// Weights blob.
+        #[arg(long, default_value = "weights/pendulum.kkf")]
+        weights: PathBuf,
+        /// CSV `rollout,t,theta,theta_dot` (e.g. from `koopman import`).
+        data: PathBuf,
+        /// Print the diagnosis as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Write diagnosis.json and residual.png here.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Scores every model of the protocol on the test set: Table 1 with the
     /// paper's figures beside ours.
@@ -278,6 +321,69 @@ fn run(cmd: Cmd) -> Result<()> {
                         r.id, n, out.params[0], out.param_std[0], out.sigma[0], out.trust
                     );
                 }
+            }
+        }
+        Cmd::Import {
+            inputs,
+            out,
+            unit,
+            rate,
+            dt,
+            start,
+            duration,
+            smooth,
+        } => {
+            anyhow::ensure!(
+                dt > 0.0 && smooth >= 0.0 && start >= 0.0,
+                "--dt must be positive, --smooth and --start not negative"
+            );
+            let opts = import::ImportOptions {
+                unit,
+                rate,
+                dt,
+                start,
+                duration,
+                smooth,
+            };
+            let ds = import::import(&inputs, &opts)?;
+            let dir = out
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(std::path::Path::new("."));
+            let name = out
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .context("--out needs a file name")?;
+            let csv = data::write(&ds, dir, name)?;
+            for (p, r) in inputs.iter().zip(&ds.rollouts) {
+                println!(
+                    "{} -> rollout {}: {} steps of {} s",
+                    p.display(),
+                    r.id,
+                    r.xs.len(),
+                    dt
+                );
+            }
+            println!("wrote {}", csv.display());
+        }
+        Cmd::Diagnose {
+            weights,
+            data,
+            json,
+            out,
+        } => {
+            let bytes = read_blob(&weights)?;
+            let model =
+                estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
+            let ds = data::read(&data, 8)?;
+            let d = diagnose::diagnose(&model, &ds)?;
+            if let Some(dir) = &out {
+                diagnose::write(dir, &d)?;
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&d)?);
+            } else {
+                print!("{}", diagnose::summary(&d));
             }
         }
         Cmd::Evaluate {

@@ -539,3 +539,93 @@ pub fn trajectories(
     }
     root.present().map_err(err)
 }
+
+/// `residual.png`: the acceleration residual (length correction removed)
+/// against the column of the strongest selected effect, with the other
+/// selected effects' fitted contributions removed (a partial residual plot)
+/// and the fitted line; against `theta_dot` when nothing was selected.
+pub fn residual(path: &Path, d: &crate::diagnose::Diagnosis) -> Result<()> {
+    use crate::diagnose::{CANDIDATES, column};
+    let root = png(path, (1000, 650))?;
+    let main = d
+        .effects
+        .iter()
+        .max_by(|a, b| a.contribution_rms.total_cmp(&b.contribution_rms));
+    let idx = |name: &str| CANDIDATES.iter().position(|c| *c == name).unwrap_or(0);
+    let pts: Vec<(f64, f64)> = d
+        .points
+        .iter()
+        .map(|&(_, th, thd, r, w2)| match main {
+            Some(m) => {
+                let others: f64 = d
+                    .effects
+                    .iter()
+                    .filter(|e| e.name != m.name)
+                    .map(|e| e.coefficient * column(idx(&e.name), th, thd, w2))
+                    .sum();
+                (column(idx(&m.name), th, thd, w2), r - others)
+            }
+            None => (thd, r),
+        })
+        .collect();
+    let (x0, x1) = bounds(pts.iter().map(|p| p.0));
+    let (y0, y1) = bounds(pts.iter().map(|p| p.1));
+    let (title, xdesc) = match main {
+        Some(m) => (
+            format!(
+                "Residual against the {} term: coefficient {:.4} [{:.4}, {:.4}]",
+                m.name, m.coefficient, m.ci[0], m.ci[1]
+            ),
+            format!(
+                "{} column (term added to theta_ddot per unit coefficient)",
+                m.name
+            ),
+        ),
+        None => (
+            format!("Residual, verdict: {}", d.verdict),
+            "theta_dot (rad/s)".to_string(),
+        ),
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(65)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(xdesc)
+        .y_desc("acceleration residual (rad/s^2)")
+        .draw()
+        .map_err(err)?;
+    chart
+        .draw_series(
+            pts.iter()
+                .map(|&p| Circle::new(p, 2, COLOURS[2].mix(0.5).filled())),
+        )
+        .map_err(err)?
+        .label("measured minus model, per step")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, COLOURS[2].filled()));
+    if let Some(m) = main {
+        let c = m.coefficient;
+        chart
+            .draw_series(LineSeries::new(
+                [(x0, c * x0), (x1, c * x1)],
+                COLOURS[0].stroke_width(2),
+            ))
+            .map_err(err)?
+            .label(format!("fitted {} x {:.4}", m.name, c))
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], COLOURS[0].stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)
+}
