@@ -18,6 +18,53 @@ pub enum ModelKind {
     Mlp,
 }
 
+/// An effect trained as the second physical parameter: its coefficient is
+/// drawn per training rollout, uniformly in `range`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EffectRange {
+    /// The effect's name (`sim::Effect::NAMES`).
+    pub name: String,
+    /// Coefficients drawn from `[lo, hi]`.
+    pub range: [f64; 2],
+}
+
+impl EffectRange {
+    /// Parses `NAME:LO..HI`, e.g. `viscous:0..0.5`.
+    pub fn parse(s: &str) -> Result<EffectRange, String> {
+        let (name, r) = s
+            .split_once(':')
+            .ok_or_else(|| format!("effect {s:?}: expected NAME:LO..HI"))?;
+        let (lo, hi) = r
+            .split_once("..")
+            .ok_or_else(|| format!("effect {s:?}: expected a range LO..HI"))?;
+        let num = |v: &str| -> Result<f64, String> {
+            v.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("effect {s:?}: {v:?} is not a finite number"))
+        };
+        let (lo, hi) = (num(lo)?, num(hi)?);
+        if lo > hi {
+            return Err(format!("effect {s:?}: empty range"));
+        }
+        let name = name.trim().to_string();
+        crate::sim::Effect::parse(&format!("{name}:0"))?;
+        Ok(EffectRange {
+            name,
+            range: [lo, hi],
+        })
+    }
+
+    /// The effect at coefficient `c`.
+    pub fn at(&self, c: f64) -> crate::sim::Effect {
+        // The name was checked when parsed; a config edited by hand to an
+        // unknown name fails here with the parser's message.
+        crate::sim::Effect::parse(&format!("{}:{c}", self.name))
+            .unwrap_or(crate::sim::Effect::Viscous(0.0))
+    }
+}
+
 /// Everything a training run depends on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -28,6 +75,18 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Training lengths, m.
     pub lengths: Vec<f64>,
+    /// Gravity of the simulated training data, m/s^2.
+    pub g: f64,
+    /// Observation interval, s (the model's `dt`, written into the blob).
+    pub dt: f64,
+    /// Range of the training rollouts' initial angle, rad.
+    pub theta0: [f64; 2],
+    /// An effect trained as the second physical parameter (none: the second
+    /// parameter is an unused zero).
+    pub effect: Option<EffectRange>,
+    /// Filter: prior standard deviation of the effect's coefficient (prior
+    /// mean 0); 0 means the top of its training range.
+    pub prior_std_effect: f64,
     /// Rollouts per training length.
     pub rollouts_per_length: usize,
     /// Training window, observations (the protocol's rollouts have 128; the
@@ -69,6 +128,11 @@ impl Default for TrainConfig {
             model: ModelKind::Klm,
             seed: 42,
             lengths: vec![2.0, 5.0],
+            g: crate::sim::G,
+            dt: crate::sim::DT,
+            theta0: [std::f64::consts::FRAC_PI_2, 0.9 * std::f64::consts::PI],
+            effect: None,
+            prior_std_effect: 0.0,
             rollouts_per_length: 200,
             window: 128,
             batch: 32,
@@ -113,5 +177,31 @@ impl TrainConfig {
     pub fn lr_at(&self, i: usize) -> f64 {
         let f = i as f64 / self.iterations.max(1) as f64;
         self.lr_final + 0.5 * (self.lr - self.lr_final) * (1.0 + (std::f64::consts::PI * f).cos())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn effect_ranges_parse_and_refuse() {
+        let e = EffectRange::parse("viscous:0..0.5").unwrap();
+        assert_eq!(e.name, "viscous");
+        assert_eq!(e.range, [0.0, 0.5]);
+        assert_eq!(e.at(0.25), crate::sim::Effect::Viscous(0.25));
+        assert_eq!(
+            EffectRange::parse("torque:-2..0").unwrap().range,
+            [-2.0, 0.0]
+        );
+        for bad in [
+            "viscous",
+            "viscous:0.5",
+            "viscous:1..0",
+            "wind:0..1",
+            "drag:0..x",
+        ] {
+            assert!(EffectRange::parse(bad).is_err(), "{bad} was accepted");
+        }
     }
 }

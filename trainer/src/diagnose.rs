@@ -51,7 +51,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use crate::data::Dataset;
-use crate::sim::{self, Effect, Pendulum};
+use crate::sim::{Effect, Pendulum};
 
 /// The candidate effects' names, in column order.
 pub const CANDIDATES: [&str; 6] = ["viscous", "coulomb", "drag", "torque", "offset", "gain"];
@@ -233,7 +233,9 @@ fn design(rows: &Rows, active: &[usize]) -> DMatrix<f64> {
     x
 }
 
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
+/// Root mean square.
+/// Root mean square.
+pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
     (s / n.max(1) as f64).sqrt()
 }
@@ -243,12 +245,14 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 fn physics_mse(
     xs: &[[f64; 2]],
     dt: f64,
+    g: f64,
     length: f64,
     effects: &[Effect],
     offset: f64,
     gain: f64,
 ) -> f64 {
     let mut p = Pendulum::new(length);
+    p.g = g;
     p.effects = effects.to_vec();
     // Measured = (1 + gain) * (true + offset): map x_0 back, simulate, map out.
     let g1 = 1.0 + gain;
@@ -268,14 +272,28 @@ fn physics_mse(
     se / (2.0 * (xs.len() - 1) as f64)
 }
 
-/// Diagnoses every rollout of `ds` with the blob `model`.
-pub fn diagnose(model: &Model<'_>, ds: &Dataset) -> Result<Diagnosis> {
+/// The length of the declared physics, `theta_ddot = -(3 g / 2 L) sin(theta)`,
+/// fitted by least squares to the step-averaged data.
+pub fn physics_length(xs: &[[f64; 2]], dt: f64, g: f64) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for w in xs.windows(2) {
+        let a = (w[1][1] - w[0][1]) / dt;
+        let s = 0.5 * (w[0][0].sin() + w[1][0].sin());
+        num += -a * s;
+        den += s * s;
+    }
+    (num > 0.0 && den > 0.0).then(|| 3.0 * g / (2.0 * num / den))
+}
+
+/// Diagnoses every rollout of `ds` with the blob `model`; `g` is the
+/// gravity of the declared physics.
+pub fn diagnose(model: &Model<'_>, ds: &Dataset, g: f64) -> Result<Diagnosis> {
     let dt = ds.sidecar.dt;
     anyhow::ensure!(
         dt > 0.0 && dt.is_finite(),
         "the data's dt ({dt}) is not usable"
     );
-    let w2_of = |l: f64| 3.0 * sim::G / (2.0 * l);
+    let w2_of = |l: f64| 3.0 * g / (2.0 * l);
     let mut rows = Rows {
         rollout: vec![],
         r: vec![],
@@ -297,21 +315,11 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset) -> Result<Diagnosis> {
         let length_model = if trusted && est > 0.0 {
             est as f64
         } else {
-            let (mut num, mut den) = (0.0, 0.0);
-            for w in r.xs.windows(2) {
-                let a = (w[1][1] - w[0][1]) / dt;
-                let s = 0.5 * (w[0][0].sin() + w[1][0].sin());
-                num += -a * s;
-                den += s * s;
-            }
-            anyhow::ensure!(
-                num > 0.0 && den > 0.0,
-                "rollout {}: no restoring force in the data",
-                r.id
-            );
-            3.0 * sim::G / (2.0 * num / den)
+            physics_length(&r.xs, dt, g)
+                .with_context(|| format!("rollout {}: no restoring force in the data", r.id))?
         };
-        let p = Pendulum::new(length_model);
+        let mut p = Pendulum::new(length_model);
+        p.g = g;
         for w in r.xs.windows(2) {
             let pred = p.step(w[0], 0.0, dt);
             rows.rollout.push(ri);
@@ -409,12 +417,13 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset) -> Result<Diagnosis> {
     let mut points = Vec::new();
     for (ri, (r, d)) in ds.rollouts.iter().zip(per.iter_mut()).enumerate() {
         let w2m = w2_of(d.length_model);
-        let before_l = 3.0 * sim::G / (2.0 * (w2m + nuisance_only.beta[ri]));
-        d.length_fit = 3.0 * sim::G / (2.0 * (w2m + fit.beta[ri]));
-        d.sim_mse_before = physics_mse(&r.xs, dt, before_l, &[], 0.0, 0.0);
+        let before_l = 3.0 * g / (2.0 * (w2m + nuisance_only.beta[ri]));
+        d.length_fit = 3.0 * g / (2.0 * (w2m + fit.beta[ri]));
+        d.sim_mse_before = physics_mse(&r.xs, dt, g, before_l, &[], 0.0, 0.0);
         d.sim_mse_after = physics_mse(
             &r.xs,
             dt,
+            g,
             d.length_fit,
             &dynamic,
             coef("offset"),

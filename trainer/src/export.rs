@@ -95,7 +95,7 @@ impl BlobParts {
         Blob {
             header: Header::CURRENT,
             body: Body {
-                dt: crate::sim::DT as f32,
+                dt: cfg.dt as f32,
                 activation: cfg.activation,
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),
@@ -247,10 +247,17 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
             declared: true,
             train_range: range(&cfg.lengths),
         },
-        ParamSpec {
-            name: "none",
-            declared: false,
-            train_range: [0.0, 0.0],
+        match &cfg.effect {
+            Some(e) => ParamSpec {
+                name: e.name.as_str(),
+                declared: true,
+                train_range: [e.range[0] as f32, e.range[1] as f32],
+            },
+            None => ParamSpec {
+                name: "none",
+                declared: false,
+                train_range: [0.0, 0.0],
+            },
         },
     ];
     let mut q = [0.0f32; AUG_DIM];
@@ -262,6 +269,17 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
         prior_var[k] = residual_var[k];
     }
     prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
+    if let Some(e) = &cfg.effect {
+        let std = if cfg.prior_std_effect > 0.0 {
+            cfg.prior_std_effect
+        } else {
+            e.range[0]
+                .abs()
+                .max(e.range[1].abs())
+                .max(f64::MIN_POSITIVE)
+        };
+        prior_var[LATENT_DIM + 1] = (std * std) as f32;
+    }
     let mut filter = FilterSpec {
         q,
         r,
@@ -324,7 +342,14 @@ pub fn global_koopman(
         anyhow::ensure!(r.xs.len() == t, "rollouts of unequal length");
         x.extend(r.xs.iter().flat_map(|&v| norm.apply(v)));
         let m = ds.meta(r.id).context("rollout without truth")?;
-        p.extend([m.length as f32, 0.0]);
+        let second = match &cfg.effect {
+            Some(e) => *m
+                .effects
+                .get(&e.name)
+                .context("rollout without its effect's coefficient")?,
+            None => 0.0,
+        };
+        p.extend([m.length as f32, second as f32]);
     }
     let b = ds.rollouts.len();
     let x = Tensor::<3>::from_data(TensorData::new(x, [b, t, 2]), &device);
@@ -363,7 +388,10 @@ pub fn global_koopman(
         for j in 0..l {
             f[i * AUG_DIM + j] = at[j * l + i];
         }
-        f[i * AUG_DIM + l] = ct[i]; // length column; the undeclared parameter's stays 0
+        f[i * AUG_DIM + l] = ct[i]; // length column
+        if cfg.effect.is_some() {
+            f[i * AUG_DIM + l + 1] = ct[l + i]; // the effect's column (else it stays 0)
+        }
     }
     for k in l..AUG_DIM {
         f[k * AUG_DIM + k] = 1.0;

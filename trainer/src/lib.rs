@@ -3,6 +3,7 @@
 //! The `koopman` binary (`main.rs`) is a thin command line over this.
 
 pub mod baseline;
+pub mod closeloop;
 pub mod config;
 pub mod data;
 pub mod diagnose;

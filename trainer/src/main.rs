@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
-use trainer::config::{ModelKind, TrainConfig};
+use trainer::config::{EffectRange, ModelKind, TrainConfig};
 use trainer::sim::Effect;
-use trainer::{data, diagnose, eval, export, import, report, table1, train};
+use trainer::{closeloop, data, diagnose, eval, export, import, report, table1, train};
 
 #[derive(Parser)]
 #[command(
@@ -67,6 +67,22 @@ enum Cmd {
         /// A config file (JSON, TrainConfig) to start from.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// Training lengths, m.
+        #[arg(long, value_delimiter = ',')]
+        lengths: Option<Vec<f64>>,
+        /// Gravity of the simulated data, m/s^2.
+        #[arg(long)]
+        g: Option<f64>,
+        /// Observation interval, s.
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Range of the initial angle, rad: LO,HI.
+        #[arg(long, value_delimiter = ',')]
+        theta0: Option<Vec<f64>>,
+        /// An effect as the second physical parameter, NAME:LO..HI (its
+        /// coefficient drawn per rollout), e.g. viscous:0..0.5.
+        #[arg(long, value_parser = EffectRange::parse)]
+        effect: Option<EffectRange>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -137,6 +153,39 @@ enum Cmd {
         /// Write diagnosis.json and residual.png here.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Gravity of the declared physics (default: the weights' training
+        /// config, else the protocol's 10).
+        #[arg(long)]
+        g: Option<f64>,
+    },
+    /// The whole loop on measured data: import, train the declared model
+    /// around it, diagnose, add the effect found, retrain, report before and
+    /// after.
+    CloseLoop {
+        /// Recordings (imported as by `koopman import`) or one project CSV.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output directory (runs, blobs, report.md, report.json, figures).
+        #[arg(long, default_value = "runs/close-loop")]
+        out: PathBuf,
+        /// Drop the first S seconds of each recording.
+        #[arg(long, default_value_t = 0.0)]
+        start: f64,
+        /// Model interval, s.
+        #[arg(long, default_value_t = trainer::sim::DT)]
+        dt: f64,
+        /// Gravity of the physics, m/s^2.
+        #[arg(long, default_value_t = trainer::sim::G)]
+        g: f64,
+        /// Training iterations of each model.
+        #[arg(long, default_value_t = 3000)]
+        iterations: usize,
+        /// Seed of both trainings.
+        #[arg(long, default_value_t = 42)]
+        seed: u64,
+        /// No progress bars.
+        #[arg(long)]
+        quiet: bool,
     },
     /// Scores every model of the protocol on the test set: Table 1 with the
     /// paper's figures beside ours.
@@ -225,6 +274,11 @@ fn run(cmd: Cmd) -> Result<()> {
             batch,
             window,
             config,
+            lengths,
+            g,
+            dt,
+            theta0,
+            effect,
             quiet,
         } => {
             let mut cfg = match config {
@@ -245,6 +299,30 @@ fn run(cmd: Cmd) -> Result<()> {
             if let Some(v) = window {
                 cfg.window = v;
             }
+            if let Some(v) = lengths {
+                cfg.lengths = v;
+            }
+            if let Some(v) = g {
+                cfg.g = v;
+            }
+            if let Some(v) = dt {
+                cfg.dt = v;
+            }
+            if let Some(v) = theta0 {
+                let [lo, hi] = v[..] else {
+                    anyhow::bail!("--theta0 takes two angles, LO,HI");
+                };
+                anyhow::ensure!(lo <= hi, "--theta0: LO must not exceed HI");
+                cfg.theta0 = [lo, hi];
+            }
+            if effect.is_some() {
+                cfg.effect = effect;
+            }
+            anyhow::ensure!(
+                !cfg.lengths.is_empty() && cfg.lengths.iter().all(|l| *l > 0.0),
+                "lengths must be positive"
+            );
+            anyhow::ensure!(cfg.g > 0.0 && cfg.dt > 0.0, "g and dt must be positive");
             anyhow::ensure!(
                 cfg.window >= 2 && cfg.window <= data::ROLLOUT_LEN,
                 "window must be in 2..=128"
@@ -371,12 +449,14 @@ fn run(cmd: Cmd) -> Result<()> {
             data,
             json,
             out,
+            g,
         } => {
+            let g = g.unwrap_or_else(|| report::config_of(&weights).g);
             let bytes = read_blob(&weights)?;
             let model =
                 estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
             let ds = data::read(&data, 8)?;
-            let d = diagnose::diagnose(&model, &ds)?;
+            let d = diagnose::diagnose(&model, &ds, g)?;
             if let Some(dir) = &out {
                 diagnose::write(dir, &d)?;
             }
@@ -385,6 +465,31 @@ fn run(cmd: Cmd) -> Result<()> {
             } else {
                 print!("{}", diagnose::summary(&d));
             }
+        }
+        Cmd::CloseLoop {
+            inputs,
+            out,
+            start,
+            dt,
+            g,
+            iterations,
+            seed,
+            quiet,
+        } => {
+            let opts = closeloop::CloseLoopOptions {
+                import: import::ImportOptions {
+                    start,
+                    dt,
+                    ..Default::default()
+                },
+                g,
+                iterations,
+                seed,
+                quiet,
+            };
+            let r = closeloop::close_loop(&inputs, &out, &opts)?;
+            print!("{}", closeloop::markdown(&r));
+            println!("\nwrote {}", out.display());
         }
         Cmd::Evaluate {
             weights,

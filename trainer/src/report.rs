@@ -162,7 +162,8 @@ pub fn seed_of(blob: &Path) -> u64 {
     config_of(blob).seed
 }
 
-fn config_of(blob: &Path) -> TrainConfig {
+/// The training config in a blob's sidecar (the default when it cannot be read).
+pub fn config_of(blob: &Path) -> TrainConfig {
     std::fs::read_to_string(blob.with_extension("json"))
         .ok()
         .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())

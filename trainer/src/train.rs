@@ -104,7 +104,18 @@ pub fn device() -> Device {
 
 /// The training data a config describes (deterministic from its seed).
 pub fn training_data(cfg: &TrainConfig) -> Dataset {
-    data::training_set(cfg.seed, &cfg.lengths, cfg.rollouts_per_length, &[])
+    data::training_set_with(
+        cfg.seed,
+        &cfg.lengths,
+        cfg.rollouts_per_length,
+        &[],
+        data::Physics {
+            g: cfg.g,
+            dt: cfg.dt,
+        },
+        cfg.theta0,
+        cfg.effect.as_ref(),
+    )
 }
 
 /// Normalised windows and their parameters, ready to batch.
@@ -118,8 +129,9 @@ pub struct Batcher {
 }
 
 impl Batcher {
-    /// From a data set with its truth.
-    pub fn new(ds: &Dataset, norm: &Norm) -> Result<Self> {
+    /// From a data set with its truth; the second parameter is the
+    /// coefficient of the effect named `effect` (0 without one).
+    pub fn new(ds: &Dataset, norm: &Norm, effect: Option<&str>) -> Result<Self> {
         let mut xs = Vec::new();
         let mut ps = Vec::new();
         let mut lengths: Vec<f64> = Vec::new();
@@ -129,7 +141,14 @@ impl Batcher {
                 .meta(r.id)
                 .context("training rollout without truth in its sidecar")?;
             xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
-            ps.push([m.length as f32, 0.0]);
+            let second = match effect {
+                Some(name) => *m
+                    .effects
+                    .get(name)
+                    .with_context(|| format!("rollout {} has no {name} coefficient", r.id))?,
+                None => 0.0,
+            };
+            ps.push([m.length as f32, second as f32]);
             match lengths.iter().position(|&l| l == m.length) {
                 Some(k) => strata[k].push(i),
                 None => {
@@ -299,7 +318,11 @@ fn train_model<M: Trainable>(
             .num_threads(cfg.threads)
             .build_global();
     }
-    let batcher = Batcher::new(&ds, &state.norm)?;
+    let batcher = Batcher::new(
+        &ds,
+        &state.norm,
+        cfg.effect.as_ref().map(|e| e.name.as_str()),
+    )?;
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -364,7 +387,7 @@ mod tests {
             ..TrainConfig::for_model(kind)
         };
         let ds = training_data(&cfg);
-        let b = Batcher::new(&ds, &Norm::fit(&ds)).unwrap();
+        let b = Batcher::new(&ds, &Norm::fit(&ds), None).unwrap();
         let (_, p) = b.batch(&cfg, iteration, &Device::flex());
         let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
         p.chunks(2).map(|c| c[0]).collect()

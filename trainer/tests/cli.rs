@@ -372,3 +372,125 @@ fn import_reads_the_measured_recordings() {
     assert_eq!(first[0], 1.0);
     assert!((first[2] + 90.36f64.to_radians()).abs() < 0.01, "{first:?}");
 }
+
+#[test]
+fn an_effect_trains_as_the_second_parameter() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    run_ok(
+        koopman()
+            .args([
+                "train",
+                "--quiet",
+                "--iterations",
+                "3",
+                "--effect",
+                "viscous:0..0.4",
+            ])
+            .args([
+                "--lengths",
+                "0.12,0.14",
+                "--g",
+                "9.81",
+                "--theta0",
+                "0.5,2.0",
+                "--run",
+            ])
+            .arg(&run),
+    );
+    let blob = dir.path().join("m.kkf");
+    run_ok(koopman().arg("export").arg(&run).arg("--out").arg(&blob));
+    let bytes = std::fs::read(&blob).unwrap();
+    let model = estimator::Model::from_bytes(&bytes).unwrap();
+    let params = &model.blob().body.params;
+    assert_eq!(params[0].name, "length");
+    assert_eq!(params[1].name, "viscous");
+    assert!(params[1].declared);
+    assert_eq!(params[1].train_range, [0.0, 0.4]);
+    let cfg: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(blob.with_extension("json")).unwrap())
+            .unwrap();
+    assert_eq!(cfg["config"]["g"], 9.81);
+    // The filter moves the coefficient off its prior mean 0.
+    run_ok(
+        koopman()
+            .args([
+                "generate",
+                "--rollouts",
+                "1",
+                "--effect",
+                "viscous:0.2",
+                "--out",
+            ])
+            .arg(dir.path().join("data")),
+    );
+    let est = run_ok(
+        koopman()
+            .args(["estimate", "--json", "--steps", "64", "--weights"])
+            .arg(&blob)
+            .arg(dir.path().join("data/test.csv")),
+    );
+    let first: serde_json::Value = serde_json::from_str(est.lines().next().unwrap()).unwrap();
+    assert_ne!(first["params"][1].as_f64().unwrap(), 0.0);
+    // A bad range is refused before any work.
+    let out = koopman()
+        .args(["train", "--quiet", "--effect", "viscous:1..0", "--run"])
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("empty range"));
+}
+
+#[test]
+fn close_loop_runs_the_whole_loop_on_synthetic_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run_ok(
+        koopman()
+            .args([
+                "generate",
+                "--lengths",
+                "2",
+                "--rollouts",
+                "3",
+                "--effect",
+                "viscous:0.2",
+                "--out",
+            ])
+            .arg(d.join("data")),
+    );
+    let out = d.join("loop");
+    let text = run_ok(
+        koopman()
+            .args(["close-loop", "--quiet", "--iterations", "20", "--out"])
+            .arg(&out)
+            .arg(d.join("data/train.csv")),
+    );
+    assert!(text.contains("## Diagnosis: explained"), "{text}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    // The physics names the effect whatever the (barely trained) KLM says.
+    let e = &r["diagnosis"]["effects"][0];
+    assert_eq!(e["name"], "viscous", "{r:#}");
+    let c = e["coefficient"].as_f64().unwrap();
+    assert!((c - 0.2).abs() < 0.04, "viscous {c}");
+    assert_eq!(r["effect_added"]["name"], "viscous");
+    let hi = r["effect_added"]["range"][1].as_f64().unwrap();
+    assert!((hi - 2.0 * c).abs() < 1e-12);
+    let recs = r["recordings"].as_array().unwrap();
+    assert_eq!(recs.len(), 3);
+    for rec in recs {
+        assert!(rec["error_before"].as_f64().unwrap().is_finite());
+        assert!(rec["error_after"].as_f64().unwrap().is_finite());
+    }
+    for f in [
+        "report.md",
+        "before_after.png",
+        "diagnosis/residual.png",
+        "declared/model.kkf",
+        "with-effect/model.kkf",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+}
