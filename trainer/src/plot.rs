@@ -541,7 +541,7 @@ pub fn trajectories(
 }
 
 /// `residual.png`: the acceleration residual (length correction removed)
-/// against the column of the strongest selected effect, with the other
+/// against the column of the most significant selected effect (largest `|t|`), with the other
 /// selected effects' fitted contributions removed (a partial residual plot)
 /// and the fitted line; against `theta_dot` when nothing was selected.
 pub fn residual(path: &Path, d: &crate::diagnose::Diagnosis) -> Result<()> {
@@ -550,7 +550,7 @@ pub fn residual(path: &Path, d: &crate::diagnose::Diagnosis) -> Result<()> {
     let main = d
         .effects
         .iter()
-        .max_by(|a, b| a.contribution_rms.total_cmp(&b.contribution_rms));
+        .max_by(|a, b| a.t.abs().total_cmp(&b.t.abs()));
     let idx = |name: &str| CANDIDATES.iter().position(|c| *c == name).unwrap_or(0);
     let pts: Vec<(f64, f64)> = d
         .points
