@@ -117,17 +117,8 @@ pub fn score(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<(f64, estimator::Step
     model
         .simulate(&x0, &out.params, &mut sim)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let sd: Vec<f64> = (0..2)
-        .map(|d| {
-            let m = xs.iter().map(|x| x[d]).sum::<f64>() / xs.len() as f64;
-            diagnose::rms(xs.iter().map(|x| x[d] - m)).max(1e-12)
-        })
-        .collect();
-    let mut se = 0.0;
-    for (s, x) in sim.iter().zip(&xs[1..]) {
-        se += ((s[0] as f64 - x[0]) / sd[0]).powi(2) + ((s[1] as f64 - x[1]) / sd[1]).powi(2);
-    }
-    Ok((se / (2.0 * sim.len() as f64), out))
+    let sim: Vec<[f64; 2]> = sim.iter().map(|s| [s[0] as f64, s[1] as f64]).collect();
+    Ok((diagnose::scaled_mse(xs, &sim), out))
 }
 
 fn train_and_export(dir: &Path, cfg: TrainConfig, quiet: bool) -> Result<PathBuf> {

@@ -257,7 +257,19 @@ fn physics_mse(
     // Measured = (1 + gain) * (true + offset): map x_0 back, simulate, map out.
     let g1 = 1.0 + gain;
     let x0 = [xs[0][0] / g1 - offset, xs[0][1] / g1];
-    let sim = p.rollout(x0, xs.len(), dt);
+    let sim: Vec<[f64; 2]> = p
+        .rollout(x0, xs.len(), dt)
+        .iter()
+        .skip(1)
+        .map(|s| [g1 * (s[0] + offset), g1 * s[1]])
+        .collect();
+    scaled_mse(xs, &sim)
+}
+
+/// MSE of a simulation `sim` of `xs[1..]` (from `xs[0]`), each dimension
+/// scaled by the standard deviation of `xs` in it, so that 1 is as bad as
+/// answering the mean.
+pub fn scaled_mse(xs: &[[f64; 2]], sim: &[[f64; 2]]) -> f64 {
     let sd: Vec<f64> = (0..2)
         .map(|d| {
             let m = xs.iter().map(|x| x[d]).sum::<f64>() / xs.len() as f64;
@@ -265,11 +277,10 @@ fn physics_mse(
         })
         .collect();
     let mut se = 0.0;
-    for (s, x) in sim.iter().zip(xs).skip(1) {
-        let m = [g1 * (s[0] + offset), g1 * s[1]];
-        se += ((m[0] - x[0]) / sd[0]).powi(2) + ((m[1] - x[1]) / sd[1]).powi(2);
+    for (s, x) in sim.iter().zip(&xs[1..]) {
+        se += ((s[0] - x[0]) / sd[0]).powi(2) + ((s[1] - x[1]) / sd[1]).powi(2);
     }
-    se / (2.0 * (xs.len() - 1) as f64)
+    se / (2.0 * sim.len().max(1) as f64)
 }
 
 /// The length of the declared physics, `theta_ddot = -(3 g / 2 L) sin(theta)`,

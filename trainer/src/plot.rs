@@ -44,6 +44,48 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("plotting: {e:?}")
 }
 
+/// Draws the legend of a chart's labelled series.
+fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, pos: SeriesLabelPosition) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate,
+{
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err)
+}
+
+/// Draws one line per rollout, `(length, points)`, in its length's colour
+/// (`alpha` of it), labelling each length once.
+fn length_lines<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    lines: Vec<(f64, Vec<(f64, f64)>)>,
+    alpha: f64,
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let mut labelled: Vec<f64> = Vec::new();
+    for (l, pts) in lines {
+        let c = colour(l);
+        let series = chart
+            .draw_series(LineSeries::new(pts, c.mix(alpha).stroke_width(1)))
+            .map_err(err)?;
+        if !labelled.contains(&l) {
+            series.label(format!("L = {l}")).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+            });
+            labelled.push(l);
+        }
+    }
+    Ok(())
+}
+
 /// One colour per test length, in `TEST_LENGTHS` order.
 const COLOURS: [RGBColor; 5] = [
     RGBColor(213, 94, 0),
@@ -125,35 +167,19 @@ fn phase(
         .y_desc("theta_dot (rad/s)")
         .draw()
         .map_err(err)?;
+    let mut lines = Vec::new();
     for &l in &lengths {
-        let c = colour(l);
-        let mut first = true;
         for r in ds
             .rollouts
             .iter()
             .filter(|r| ds.meta(r.id).is_some_and(|m| m.length == l))
             .step_by(every)
         {
-            let s = chart
-                .draw_series(LineSeries::new(
-                    r.xs.iter().map(|x| (x[0], x[1])),
-                    c.stroke_width(1),
-                ))
-                .map_err(err)?;
-            if first {
-                s.label(format!("L = {l}")).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                });
-                first = false;
-            }
+            lines.push((l, r.xs.iter().map(|x| (x[0], x[1])).collect()));
         }
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    length_lines(&mut chart, lines, 1.0)?;
+    legend(&mut chart, SeriesLabelPosition::MiddleRight)?;
     Ok(())
 }
 
@@ -208,32 +234,20 @@ pub fn length_estimates(path: &Path, scores: &[RolloutScore]) -> Result<()> {
                 c.stroke_width(1),
             ))
             .map_err(err)?;
-        let mut first = true;
-        for s in scores.iter().filter(|s| s.length == l) {
-            let series = chart
-                .draw_series(LineSeries::new(
-                    s.length_trace
-                        .iter()
-                        .enumerate()
-                        .map(|(t, &v)| (t as f64, v as f64)),
-                    c.stroke_width(1),
-                ))
-                .map_err(err)?;
-            if first {
-                series.label(format!("L = {l}")).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                });
-                first = false;
-            }
-        }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    let lines = scores
+        .iter()
+        .map(|s| {
+            let pts = s
+                .length_trace
+                .iter()
+                .enumerate()
+                .map(|(t, &v)| (t as f64, v as f64));
+            (s.length, pts.collect())
+        })
+        .collect();
+    length_lines(&mut chart, lines, 1.0)?;
+    legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().map_err(err)
 }
 
@@ -277,34 +291,20 @@ pub fn corrections(path: &Path, scores: &[RolloutScore]) -> Result<()> {
             BLACK.stroke_width(1),
         ))
         .map_err(err)?;
-    for &l in &lengths {
-        let c = colour(l);
-        let mut first = true;
-        for s in scores.iter().filter(|s| s.length == l) {
-            let series = chart
-                .draw_series(LineSeries::new(
-                    s.corrections
-                        .iter()
-                        .enumerate()
-                        .skip(1)
-                        .map(|(t, &v)| (t as f64, mag(v))),
-                    c.mix(0.7).stroke_width(1),
-                ))
-                .map_err(err)?;
-            if first {
-                series.label(format!("L = {l}")).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                });
-                first = false;
-            }
-        }
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    let lines = scores
+        .iter()
+        .map(|s| {
+            let pts = s
+                .corrections
+                .iter()
+                .enumerate()
+                .skip(1)
+                .map(|(t, &v)| (t as f64, mag(v)));
+            (s.length, pts.collect())
+        })
+        .collect();
+    length_lines(&mut chart, lines, 0.7)?;
+    legend(&mut chart, SeriesLabelPosition::MiddleRight)?;
 
     // Histogram after the burn-in, bins of 0.2 in log10 |c|.
     let logs = |s: &RolloutScore| -> Vec<f64> {
@@ -362,12 +362,7 @@ pub fn corrections(path: &Path, scores: &[RolloutScore]) -> Result<()> {
             .label(format!("L = {l}"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, SeriesLabelPosition::MiddleRight)?;
     root.present().map_err(err)
 }
 
@@ -425,13 +420,7 @@ pub fn estimates_vs_truth(path: &Path, scores: &[RolloutScore]) -> Result<()> {
         .map_err(err)?
         .label("KLM's Kalman filter")
         .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, klm.filled()));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(err)
 }
 
@@ -529,13 +518,7 @@ pub fn trajectories(
                 .label(name)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(err)?;
+        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)
 }
@@ -620,13 +603,7 @@ pub fn residual(path: &Path, d: &crate::diagnose::Diagnosis) -> Result<()> {
                 PathElement::new(vec![(x, y), (x + 20, y)], COLOURS[0].stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(err)
 }
 
@@ -705,13 +682,7 @@ pub fn close_loop(
                 .label(name)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(err)?;
+        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)
 }
