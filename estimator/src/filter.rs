@@ -30,17 +30,13 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 
 /// `P`, stored row-major (it is symmetric, so rows are columns too).
 type Cov = [[f32; AUG_DIM]; AUG_DIM];
-/// The Kalman gain `K`, row `i` the gain of state `i` (AUG x LATENT).
-type GainRows = [[f32; LATENT_DIM]; AUG_DIM];
 /// A [`LATENT_DIM`] square matrix (`S` and its factors).
 type LatentSquare = [[f32; LATENT_DIM]; LATENT_DIM];
 
-const ZERO_LATENT: Latent = [0.0; LATENT_DIM];
-
-/// The first [`LATENT_DIM`] entries of a row: its `y` part (`H` applied).
+/// The last [`PARAM_DIM`] entries of a row: its `p` part.
 #[inline(always)]
-fn head(r: &[f32; AUG_DIM]) -> &Latent {
-    r.first_chunk::<LATENT_DIM>().unwrap_or(&ZERO_LATENT)
+fn tail(r: &[f32; AUG_DIM]) -> &[f32; PARAM_DIM] {
+    r.last_chunk::<PARAM_DIM>().unwrap_or(&[0.0; PARAM_DIM])
 }
 
 #[inline(always)]
@@ -48,54 +44,19 @@ fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
     a.iter().zip(b).fold(0.0, |acc, (x, y)| acc + x * y)
 }
 
-/// The four dot products of two rows of `a` with two rows of `b`,
-/// `[a0.b0, a0.b1, a1.b0, a1.b1]`, in one pass (each load feeds two
-/// multiply-adds). Each sum runs in the same order as [`dot`]: the results
-/// are bit for bit those of four separate dots.
+/// `sum_k a_k x_k` over the terms `(a_k, x_k)`, in the order given: the
+/// filter's one kernel. A product `C = A B` is `C_i = sum_k A_ik B_k` over
+/// rows of `B`, so each entry's sum runs in the order of `k` whatever the
+/// vector width, and the sum stays in registers until it is returned.
 #[inline(always)]
-fn dot2x2<const N: usize>(a: &[[f32; N]; 2], b: &[[f32; N]; 2]) -> [f32; 4] {
-    let [a0, a1] = a;
-    let [b0, b1] = b;
-    let mut s = [0.0f32; 4];
-    for (((x0, x1), y0), y1) in a0.iter().zip(a1).zip(b0).zip(b1) {
-        let [s00, s01, s10, s11] = &mut s;
-        *s00 += x0 * y0;
-        *s01 += x0 * y1;
-        *s10 += x1 * y0;
-        *s11 += x1 * y1;
-    }
-    s
-}
-
-/// `out[i][j] = op(out[i][j], a_i . b_j)` for all `i`, `j` (or, with
-/// `upper`, for the 2x2 blocks on or above the diagonal), two rows and
-/// two columns at a time. `a` and `b` give rows of length `N`.
-#[inline(always)]
-fn gram<const N: usize, const R: usize, const C: usize>(
-    out: &mut [[f32; C]; R],
-    a: &[[f32; N]; R],
-    b: &[[f32; N]; C],
-    upper: bool,
-    op: impl Fn(f32, f32) -> f32,
-) {
-    let (bp, _) = b.as_chunks::<2>();
-    let (ap, _) = a.as_chunks::<2>();
-    let (op_rows, _) = out.as_chunks_mut::<2>();
-    for (bi, (orows, arows)) in op_rows.iter_mut().zip(ap).enumerate() {
-        let [o0, o1] = orows;
-        let (o0, _) = o0.as_chunks_mut::<2>();
-        let (o1, _) = o1.as_chunks_mut::<2>();
-        let skip = if upper { bi } else { 0 };
-        for ((c0, c1), bcols) in o0.iter_mut().zip(o1.iter_mut()).zip(bp).skip(skip) {
-            let [d00, d01, d10, d11] = dot2x2(arows, bcols);
-            let [e00, e01] = c0;
-            let [e10, e11] = c1;
-            *e00 = op(*e00, d00);
-            *e01 = op(*e01, d01);
-            *e10 = op(*e10, d10);
-            *e11 = op(*e11, d11);
+fn combo<'r, const N: usize>(terms: impl Iterator<Item = (f32, &'r [f32; N])>) -> [f32; N] {
+    let mut acc = [0.0f32; N];
+    for (a, x) in terms {
+        for (o, x) in acc.iter_mut().zip(x) {
+            *o += a * x;
         }
     }
+    acc
 }
 
 /// Copies the upper triangle onto the lower one.
@@ -149,31 +110,40 @@ fn ldl(s: &mut LatentSquare, d_inv: &mut Latent) -> Result<(), Error> {
     Ok(())
 }
 
-/// Solves `S x = b` with the factors from [`ldl`], in place in `b`.
-fn ldl_solve(l: &LatentSquare, d_inv: &Latent, b: &mut Latent) {
-    // L y = b (unit lower), row by row.
-    for i in 1..LATENT_DIM {
-        let (done, rest) = b.split_at_mut(i);
-        if let (Some(bi), Some(row)) = (rest.first_mut(), l.get(i)) {
-            for (lik, yk) in row.iter().zip(done.iter()) {
-                *bi -= lik * yk;
-            }
+/// `X = L^-1` for the unit lower triangular `L` in the strict lower
+/// triangle of `l` (as [`ldl`] leaves it); `X` is unit lower triangular
+/// too, returned with zeros above the diagonal. Row by row:
+/// `X_i = e_i - sum_{k<i} L_ik X_k` (whole rows: `X_k` is zero after its
+/// `k`-th entry, so the extra terms add zeros).
+fn unit_lower_inverse(l: &LatentSquare) -> LatentSquare {
+    let mut x = [[0.0f32; LATENT_DIM]; LATENT_DIM];
+    for (i, lrow) in l.iter().enumerate() {
+        let (done, rest) = x.split_at_mut(i);
+        let Some(xi) = rest.first_mut() else { break };
+        *xi = combo(lrow.iter().map(|v| -v).zip(done.iter()));
+        if let Some(d) = xi.get_mut(i) {
+            *d = 1.0;
         }
     }
-    // z = D^-1 y.
-    for (bi, di) in b.iter_mut().zip(d_inv) {
-        *bi *= di;
+    x
+}
+
+/// `S^-1 = X^T D^-1 X` from `X = L^-1` and `1 / D`: the sum over `k` of
+/// `d_k^-1 x_k x_k^T` (`x_k` row `k` of `X`, zero after its `k`-th
+/// entry). Rows `i <= k` take each term; the upper triangle is then
+/// mirrored, so the result is exactly symmetric.
+fn inverse_from_ldl(x: &LatentSquare, d_inv: &Latent) -> LatentSquare {
+    let mut si = [[0.0f32; LATENT_DIM]; LATENT_DIM];
+    for (i, row) in si.iter_mut().enumerate() {
+        *row = combo(
+            x.iter()
+                .zip(d_inv)
+                .skip(i)
+                .map(|(xk, dk)| (xk.get(i).copied().unwrap_or(0.0) * dk, xk)),
+        );
     }
-    // L^T x = z, column by column from the last: x_k is final, then
-    // x_i -= L_ki x_k for i < k (row k of L, contiguous).
-    for k in (1..LATENT_DIM).rev() {
-        let (before, rest) = b.split_at_mut(k);
-        if let (Some(xk), Some(row)) = (rest.first(), l.get(k)) {
-            for (xi, lki) in before.iter_mut().zip(row.iter()) {
-                *xi -= lki * xk;
-            }
-        }
-    }
+    mirror_upper(&mut si);
+    si
 }
 
 /// Largest magnitude a raw measurement may have; larger is refused as not
@@ -347,84 +317,110 @@ impl<'m> Estimator<'m> {
 
     /// Predict and update without touching `self`, using the structure:
     /// `F = [C; 0 I]` with `C = [A B]` the latent rows, `H = [I 0]` a
-    /// selection, `P` symmetric (only upper triangles are computed, then
-    /// mirrored).
+    /// selection, `P` symmetric, `R` diagonal. Every product is written as
+    /// rows accumulated from scaled rows ([`combo`]), which a vector unit
+    /// runs lane-parallel and which keeps each sum in a fixed order.
     fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
         let spec = &self.model.blob().body.filter;
         let c = self.model.koopman_rows();
+        let ct = self.model.koopman_columns();
 
-        // Predict the mean: y' = C g, p' = p.
+        // Predict the mean: y' = C g = sum_k g_k C^T_k;  p' = p.
         let mut g = self.g;
-        for (gi, ci) in g.iter_mut().zip(c) {
-            *gi = dot(ci, &self.g);
+        let y = combo(self.g.iter().copied().zip(ct));
+        for (gi, yi) in g.iter_mut().zip(&y) {
+            *gi = *yi;
         }
 
-        // Predict the covariance: with N = C P (latent rows of F P),
-        // P' = [N C^T, N_p; N_p^T, P_pp] + Q, where N_p = N's p columns.
+        // Predict the covariance: N = C P (the latent rows of F P), then
+        // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
+        // P'_pp = P_pp + Q_p.
         let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
-        gram(&mut n, c, &self.p, false, |_, d| d);
-        let mut nct = [[0.0f32; LATENT_DIM]; LATENT_DIM];
-        gram(&mut nct, &n, c, true, |_, d| d);
-        let mut pp = self.p;
-        for (row, (ni, nci)) in pp.iter_mut().zip(n.iter().zip(&nct)) {
-            for (d, s) in row
-                .iter_mut()
-                .zip(nci.iter().chain(ni.iter().skip(LATENT_DIM)))
-            {
-                *d = *s;
-            }
+        for (ni, ci) in n.iter_mut().zip(c) {
+            *ni = combo(ci.iter().copied().zip(&self.p));
         }
-        mirror_upper(&mut pp);
-        for (i, (row, q)) in pp.iter_mut().zip(&spec.q).enumerate() {
-            if let Some(d) = row.get_mut(i) {
+        let mut pyy: LatentSquare = [[0.0; LATENT_DIM]; LATENT_DIM];
+        for (row, ni) in pyy.iter_mut().zip(&n) {
+            *row = combo(ni.iter().copied().zip(ct));
+        }
+        mirror_upper(&mut pyy);
+        let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
+        for (dst, ni) in pyp.iter_mut().zip(&n) {
+            *dst = *tail(ni);
+        }
+        let mut ppp = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        for (a, (dst, prow)) in ppp
+            .iter_mut()
+            .zip(self.p.iter().skip(LATENT_DIM))
+            .enumerate()
+        {
+            *dst = *tail(prow);
+            let q = spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            if let Some(d) = dst.get_mut(a) {
                 *d += q;
             }
         }
 
-        // S = H P' H^T + R, factored as L D L^T.
-        let mut s = [[0.0f32; LATENT_DIM]; LATENT_DIM];
-        for (i, (srow, prow)) in s.iter_mut().zip(&pp).enumerate() {
-            *srow = *head(prow);
-            if let (Some(d), Some(r)) = (srow.get_mut(i), spec.r.get(i)) {
-                *d += r;
+        // S = H P' H^T + R = P'_yy + Q_y + R, factored as L D L^T, and its
+        // inverse Si = X^T D^-1 X with X = L^-1.
+        let mut s = pyy;
+        for (i, srow) in s.iter_mut().enumerate() {
+            if let (Some(d), Some(q), Some(r)) = (srow.get_mut(i), spec.q.get(i), spec.r.get(i)) {
+                *d = (*d + q) + r;
             }
         }
         let mut d_inv = [0.0f32; LATENT_DIM];
         ldl(&mut s, &mut d_inv)?;
+        let x = unit_lower_inverse(&s);
+        let si = inverse_from_ldl(&x, &d_inv);
 
-        // K = P' H^T S^-1: row i of K solves S k_i = (P' H^T)_i (S symmetric).
-        let mut k: GainRows = [[0.0; LATENT_DIM]; AUG_DIM];
-        for (ki, prow) in k.iter_mut().zip(&pp) {
-            *ki = *head(prow);
-            ldl_solve(&s, &d_inv, ki);
+        // With the optimal gain K = P' H^T Si no K is formed:
+        // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
+        // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        let w = combo(nu.iter().copied().zip(&si));
+        // M^T, row a = sum_k P'_yp[k][a] Si_k.
+        let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, mta) in mt.iter_mut().enumerate() {
+            *mta = combo(
+                pyp.iter()
+                    .map(|pk| pk.get(a).copied().unwrap_or(0.0))
+                    .zip(&si),
+            );
+        }
+        for (((gi, zi), ri), wi) in g.iter_mut().zip(z).zip(&spec.r).zip(&w) {
+            *gi = zi - ri * wi;
+        }
+        for (gi, mta) in g.iter_mut().skip(LATENT_DIM).zip(&mt) {
+            *gi += dot(mta, &nu);
         }
 
-        // Mean update: g += K (z - H g).
-        let mut innovation = *z;
-        for (v, gi) in innovation.iter_mut().zip(&g) {
-            *v -= gi;
-        }
-        for (gi, ki) in g.iter_mut().zip(&k) {
-            *gi += dot(ki, &innovation);
-        }
-
-        // Joseph form, P = (I - K H) P' (I - K H)^T + K R K^T, computed as
-        // M = (I - K H) P' = P' - K (H P');  W_i = M_i,y - R K_i;
-        // P_ij = M_ij - W_i . K_j  (upper triangle, then mirrored).
-        let mut hp: GainRows = [[0.0; LATENT_DIM]; AUG_DIM];
-        for (h, prow) in hp.iter_mut().zip(&pp) {
-            *h = *head(prow);
-        }
-        let mut m = pp;
-        gram(&mut m, &k, &hp, false, |m, d| m - d);
-        let mut w: GainRows = [[0.0; LATENT_DIM]; AUG_DIM];
-        for (wi, (mrow, ki)) in w.iter_mut().zip(m.iter().zip(&k)) {
-            for ((wl, (ml, kl)), rl) in wi.iter_mut().zip(head(mrow).iter().zip(ki)).zip(&spec.r) {
-                *wl = ml - rl * kl;
+        // Covariance, (I - K H) P' by blocks:
+        // P_yy = R - R Si R,  P_yp = R M,  P_pp = P'_pp - P'_py M
+        // (P_yy exactly symmetric as Si is; P_pp's upper triangle mirrored).
+        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
+        for (i, (prow, si_row)) in p.iter_mut().zip(&si).enumerate() {
+            let ri = spec.r.get(i).copied().unwrap_or(0.0);
+            for (j, (pij, (sij, rj))) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)).enumerate()
+            {
+                let diag = if i == j { ri } else { 0.0 };
+                *pij = diag - (ri * rj) * sij;
+            }
+            for (pij, mta) in prow.iter_mut().skip(LATENT_DIM).zip(&mt) {
+                *pij = ri * mta.get(i).copied().unwrap_or(0.0);
             }
         }
-        let mut p = m;
-        gram(&mut p, &w, &k, true, |m, d| m - d);
+        for (a, (prow, ppa)) in p.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
+            for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
+                let dec = pyp.iter().zip(mtb).fold(0.0, |acc, (pk, mkb)| {
+                    acc + pk.get(a).copied().unwrap_or(0.0) * mkb
+                });
+                *pab = ppa.get(b).copied().unwrap_or(0.0) - dec;
+            }
+        }
         mirror_upper(&mut p);
 
         if g.iter().chain(p.iter().flatten()).all(|v| v.is_finite()) {

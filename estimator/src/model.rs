@@ -8,16 +8,20 @@ use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STAT
 /// filter reads them every step. The parameter rows are the identity
 /// (checked when the blob is read).
 pub type KoopmanRows = [[f32; AUG_DIM]; LATENT_DIM];
+/// `C^T`, the same numbers column by column (AUG rows of LATENT).
+pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
 
 /// A validated model whose weights stay in the bytes it was read from.
 ///
-/// Only the latent rows of `F` ([`KoopmanRows`], 1152 bytes) are copied
-/// out of the blob, as `f32` the filter can load directly; the MLP weights
-/// (the bulk of the blob) are read in place.
+/// Only the latent rows of `F` are copied out of the blob, by rows and by
+/// columns ([`KoopmanRows`], [`KoopmanColumns`], 1152 bytes each), as
+/// `f32` the filter can load directly; the MLP weights (the bulk of the
+/// blob) are read in place.
 #[derive(Debug, Clone, Copy)]
 pub struct Model<'a> {
     blob: Blob<'a>,
     c: KoopmanRows,
+    ct: KoopmanColumns,
 }
 
 #[inline(always)]
@@ -75,13 +79,27 @@ impl<'a> Model<'a> {
         for (dst, src) in c.iter_mut().flatten().zip(blob.body.f.iter()) {
             *dst = src;
         }
-        Ok(Model { blob, c })
+        let mut ct = [[0.0; LATENT_DIM]; AUG_DIM];
+        for (i, row) in c.iter().enumerate() {
+            for (col, v) in ct.iter_mut().zip(row) {
+                if let Some(d) = col.get_mut(i) {
+                    *d = *v;
+                }
+            }
+        }
+        Ok(Model { blob, c, ct })
     }
 
     /// The latent rows of `F`.
     #[inline]
     pub fn koopman_rows(&self) -> &KoopmanRows {
         &self.c
+    }
+
+    /// The latent rows of `F`, transposed.
+    #[inline]
+    pub fn koopman_columns(&self) -> &KoopmanColumns {
+        &self.ct
     }
 
     /// The decoded blob.

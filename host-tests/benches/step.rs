@@ -22,28 +22,13 @@ use burn::tensor::{Device, Tensor, TensorData};
 use criterion::{Criterion, Throughput};
 use estimator::{Estimator, Latent, Model, State};
 use host_tests::reference::Reference;
-use host_tests::shipped_blob;
-use trainer::data::{TEST_LENGTHS, test_set};
+use host_tests::{WINDOW, bench_window, shipped_blob};
 use trainer::model::Mlp;
-
-/// Steps per measured iteration: the protocol's estimation window.
-const WINDOW: usize = 64;
-
-fn window() -> Vec<State> {
-    // L = 3.5, theta_0 = pi/2 + 4 (0.4 pi) / 9: an in-distribution rollout.
-    let ds = test_set(0, &TEST_LENGTHS, &[]);
-    ds.rollouts[34]
-        .xs
-        .iter()
-        .take(WINDOW)
-        .map(|x| [x[0] as f32, x[1] as f32])
-        .collect()
-}
 
 fn bench(c: &mut Criterion) {
     let bytes = shipped_blob();
     let model = Model::from_bytes(&bytes).expect("shipped blob");
-    let xs = window();
+    let xs = bench_window();
     let zs: Vec<Latent> = xs
         .iter()
         .map(|x| model.encode(&model.normalise(x)))
@@ -87,7 +72,7 @@ fn bench(c: &mut Criterion) {
         let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
         enc.forward(t, act)
             .into_data()
-            .to_vec::<f32>()
+            .try_to_vec::<f32>()
             .expect("f32 output")
     };
     let mut g = c.benchmark_group("peer");

@@ -1,45 +1,71 @@
-//! Runs the estimator over the protocol's 50 test rollouts (64 steps each,
-//! the estimation window) on the shipped weights, for instruction counts:
+//! Runs the estimator over the protocol's 64-step window of one test
+//! rollout, `REPS` times, for instruction counts under callgrind:
 //!
 //! ```text
 //! cargo build --release -p host-tests --example steps
-//! valgrind --tool=callgrind target/release/examples/steps [REPEATS]
+//! valgrind --tool=callgrind --toggle-collect='*steps*run_*' \
+//!     target/release/examples/steps step 1000
 //! ```
 //!
-//! Divide the instructions of `Estimator::step` by the steps it prints.
+//! The first argument picks what runs (`step`, `encode`, `filter`), the
+//! second the repetitions. Instructions per step are callgrind's total
+//! `Ir` divided by `64 * REPS`.
 
-use estimator::{Estimator, Model};
-use host_tests::shipped_blob;
-use trainer::data::{TEST_LENGTHS, test_set};
+use std::hint::black_box;
 
-fn main() {
-    let repeats: usize = std::env::args()
-        .nth(1)
-        .map_or(1, |a| a.parse().expect("REPEATS: a whole number"));
-    let bytes = shipped_blob();
-    let model = Model::from_bytes(&bytes).expect("shipped blob");
-    let ds = test_set(0, &TEST_LENGTHS, &[]);
-    let rollouts: Vec<Vec<[f32; 2]>> = ds
-        .rollouts
-        .iter()
-        .map(|r| {
-            r.xs.iter()
-                .take(64)
-                .map(|x| [x[0] as f32, x[1] as f32])
-                .collect()
-        })
-        .collect();
-    let mut est = Estimator::new(&model);
-    let (mut steps, mut sum) = (0u64, 0.0f64);
-    for _ in 0..repeats {
-        for xs in &rollouts {
-            est.reset();
-            for x in xs {
-                let out = est.step(x).expect("step");
-                sum += f64::from(out.params[0]);
-                steps += 1;
-            }
+use estimator::{Estimator, Latent, Model, State};
+use host_tests::{bench_window, shipped_blob};
+
+#[inline(never)]
+fn run_step(model: &Model<'_>, xs: &[State], reps: usize) {
+    let mut est = Estimator::new(model);
+    for _ in 0..reps {
+        est.reset();
+        for x in xs {
+            black_box(est.step(black_box(x)).ok());
         }
     }
-    println!("{steps} steps (checksum {sum:.6})");
+}
+
+#[inline(never)]
+fn run_encode(model: &Model<'_>, xs: &[State], reps: usize) {
+    for _ in 0..reps {
+        for x in xs {
+            black_box(model.encode(black_box(&model.normalise(x))));
+        }
+    }
+}
+
+#[inline(never)]
+fn run_filter(model: &Model<'_>, zs: &[Latent], reps: usize) {
+    let mut est = Estimator::new(model);
+    for _ in 0..reps {
+        est.reset();
+        for z in zs {
+            black_box(est.step_latent(black_box(z)).ok());
+        }
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let what = args.get(1).map_or("step", String::as_str);
+    let reps: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1000);
+    let bytes = shipped_blob();
+    let model = Model::from_bytes(&bytes).expect("shipped blob");
+    let xs = bench_window();
+    let zs: Vec<Latent> = xs
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+    match what {
+        "step" => run_step(&model, &xs, reps),
+        "encode" => run_encode(&model, &xs, reps),
+        "filter" => run_filter(&model, &zs, reps),
+        other => {
+            eprintln!("unknown mode {other}: step, encode or filter");
+            std::process::exit(2);
+        }
+    }
+    println!("{what}: {} steps", xs.len() * reps);
 }

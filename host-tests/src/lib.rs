@@ -14,6 +14,25 @@ pub fn shipped_blob() -> Vec<u8> {
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
+/// Steps in [`bench_window`]: the protocol's estimation window.
+pub const WINDOW: usize = 64;
+
+/// The first [`WINDOW`] raw states of test rollout 34 (L = 3.5,
+/// theta_0 = pi/2 + 4 (0.4 pi) / 9, in distribution): what the benchmarks
+/// and the instruction counts step through.
+pub fn bench_window() -> Vec<estimator::State> {
+    let ds = trainer::data::test_set(0, &trainer::data::TEST_LENGTHS, &[]);
+    ds.rollouts
+        .get(34)
+        .map(|r| {
+            r.xs.iter()
+                .take(WINDOW)
+                .map(|x| [x[0] as f32, x[1] as f32])
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 /// An independent f64 Kalman filter over `[y; p]` for the estimator to be
 /// checked against (and benchmarked against): dynamic matrices (nalgebra
 /// `DMatrix`), `S^-1` by LU instead of `L D L^T`, the standard
