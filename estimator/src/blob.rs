@@ -7,22 +7,29 @@
 //! - [`Header`]: magic `b"KKF1"`, format version, and the dimensions the
 //!   blob was made for. It is read first, on its own, so that a file of the
 //!   wrong kind gets [`Error::BlobBadMagic`] rather than a decoding error.
-//! - [`Body`]: normalisation, the MLPs, the augmented Koopman matrix `F`,
-//!   the filter's `Q`, `R` and prior, and the trust calibration. Every
-//!   weight array is a borrowed run of little-endian `f32` bytes
-//!   ([`F32s`]), so reading a blob copies nothing proportional to its size.
+//! - [`Body`]: sampling interval, activation, normalisation, the
+//!   parameters, the filter's `Q`, `R` and prior, the trust calibration,
+//!   then 0-3 padding bytes and the weight arena: every weight of the
+//!   MLPs, `F` and `B` as one run of little-endian `f32` ([`F32s`]). The
+//!   padding puts the arena at a multiple of 4 bytes from the blob's first
+//!   byte, so a blob lying at an aligned address (flash, a heap buffer,
+//!   [`Aligned`]) is read as `&[f32]` in place: nothing proportional to its
+//!   size is copied, and a Cortex-M4F loads the weights with `vldr`/`vldm`.
 //! - a CRC-32 (CRC_32_ISCSI) over header and body, as postcard's
-//!   `use-crc` flavour writes it.
+//!   `use-crc` flavour writes it (4 bytes, little-endian).
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
-//! # Matrix layouts
-//! - A dense layer `out = act(W in + b)` stores `W` output-major:
-//!   `d_out` rows of `d_in` weights (the PyTorch layout, the transpose of
-//!   burn's `Linear::weight`, which is `[d_in, d_out]`). Each output's
-//!   weights are contiguous, which is what a dot-product loop wants.
-//! - `F` is [`AUG_DIM`] x [`AUG_DIM`], row-major; `B` is [`AUG_DIM`] x
-//!   [`INPUT_DIM`], row-major.
+//! # The arena (format version 2)
+//! In order, with the sizes of [`ENCODER_SHAPES`] and [`DECODER_SHAPES`]:
+//! for each encoder layer then each decoder layer, its weight `W` then its
+//! bias `b`; then `F` ([`AUG_DIM`] x [`AUG_DIM`], row-major), then `B`
+//! ([`AUG_DIM`] x [`INPUT_DIM`], row-major). A dense layer
+//! `out = W^T in + b` stores `W` input-major: `d_in` rows of `d_out`
+//! weights (burn's `Linear::weight` layout, the transpose of PyTorch's).
+//! Each input's weights are contiguous, so a layer is a sum of scaled rows
+//! and an input that is zero (half of them after a ReLU) is skipped.
+//! [`layer_span`], [`F_AT`], [`B_AT`] and [`ARENA_LEN`] give the offsets.
 
 use serde::{Deserialize, Serialize};
 
@@ -31,7 +38,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -117,31 +124,73 @@ pub enum Activation {
     Tanh,
 }
 
-/// One dense layer, `out = W in + b` (activation applied by the caller on
-/// every layer but the last).
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Layer<'a> {
-    /// Input width.
-    pub d_in: u16,
-    /// Output width.
-    pub d_out: u16,
-    /// `d_out` rows of `d_in` weights (output-major).
-    #[serde(borrow)]
-    pub weight: F32s<'a>,
-    /// `d_out` biases.
-    #[serde(borrow)]
-    pub bias: F32s<'a>,
+/// `(d_in, d_out)` of the encoder's layers: STATE -> HIDDEN -> HIDDEN ->
+/// LATENT.
+pub const ENCODER_SHAPES: [(usize, usize); N_LAYERS] = [
+    (STATE_DIM, HIDDEN_DIM),
+    (HIDDEN_DIM, HIDDEN_DIM),
+    (HIDDEN_DIM, LATENT_DIM),
+];
+/// `(d_in, d_out)` of the decoder's layers: LATENT -> HIDDEN -> HIDDEN ->
+/// STATE.
+pub const DECODER_SHAPES: [(usize, usize); N_LAYERS] = [
+    (LATENT_DIM, HIDDEN_DIM),
+    (HIDDEN_DIM, HIDDEN_DIM),
+    (HIDDEN_DIM, STATE_DIM),
+];
+
+/// Which MLP a layer belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Net {
+    /// The encoder `phi`.
+    Encoder,
+    /// The decoder `phi^-1`.
+    Decoder,
 }
 
-impl Layer<'_> {
-    fn check(&self, d_in: usize, d_out: usize) -> Result<(), Error> {
-        if usize::from(self.d_in) != d_in || usize::from(self.d_out) != d_out {
-            return Err(Error::BlobShapeMismatch);
-        }
-        self.weight.check(d_in * d_out)?;
-        self.bias.check(d_out)
+const fn mlp_len(shapes: &[(usize, usize); N_LAYERS]) -> usize {
+    let mut n = 0;
+    let mut k = 0;
+    while k < N_LAYERS {
+        n += shapes[k].0 * shapes[k].1 + shapes[k].1;
+        k += 1;
     }
+    n
 }
+
+/// Offset of `F` in the arena, in `f32`s.
+pub const F_AT: usize = mlp_len(&ENCODER_SHAPES) + mlp_len(&DECODER_SHAPES);
+/// Offset of `B` in the arena, in `f32`s.
+pub const B_AT: usize = F_AT + AUG_DIM * AUG_DIM;
+/// Length of the arena, in `f32`s.
+pub const ARENA_LEN: usize = B_AT + AUG_DIM * INPUT_DIM;
+
+/// Where layer `k` of `net` lies in the arena, in `f32`s:
+/// `(weight offset, d_in, d_out)`; its bias follows the weight at
+/// `offset + d_in * d_out`. `None` for `k >= N_LAYERS`.
+pub const fn layer_span(net: Net, k: usize) -> Option<(usize, usize, usize)> {
+    if k >= N_LAYERS {
+        return None;
+    }
+    let (shapes, mut at) = match net {
+        Net::Encoder => (&ENCODER_SHAPES, 0),
+        Net::Decoder => (&DECODER_SHAPES, mlp_len(&ENCODER_SHAPES)),
+    };
+    let mut m = 0;
+    while m < k {
+        at += shapes[m].0 * shapes[m].1 + shapes[m].1;
+        m += 1;
+    }
+    Some((at, shapes[k].0, shapes[k].1))
+}
+
+/// Bytes kept at an address aligned to 4, so that a blob compiled into
+/// firmware can be read in place:
+/// `static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("pendulum.kkf"));`
+/// then `Model::from_bytes(&BLOB.0)`.
+#[repr(C, align(4))]
+#[derive(Debug)]
+pub struct Aligned<T: ?Sized>(pub T);
 
 /// One physical parameter carried in the filter state.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
@@ -202,20 +251,37 @@ pub struct Body<'a> {
     /// The physical parameters, in filter-state order.
     #[serde(borrow)]
     pub params: [ParamSpec<'a>; PARAM_DIM],
-    /// Encoder `phi`: STATE -> HIDDEN -> HIDDEN -> LATENT.
-    #[serde(borrow)]
-    pub encoder: [Layer<'a>; N_LAYERS],
-    /// Decoder `phi^-1`: LATENT -> HIDDEN -> HIDDEN -> STATE.
-    #[serde(borrow)]
-    pub decoder: [Layer<'a>; N_LAYERS],
-    /// Augmented Koopman matrix `F` over `[y; p]`, row-major, AUG x AUG.
-    #[serde(borrow)]
-    pub f: F32s<'a>,
-    /// Input matrix `B` (AUG x INPUT, row-major; zero rows for `p`).
-    #[serde(borrow)]
-    pub b: F32s<'a>,
     /// Kalman filter settings.
     pub filter: FilterSpec,
+    /// 0-3 zero bytes putting `weights` at a multiple of 4 bytes from the
+    /// blob's start (see [`Blob::to_slice`], which chooses them).
+    #[serde(borrow)]
+    pub pad: &'a [u8],
+    /// The weight arena, [`ARENA_LEN`] values in the module's order.
+    #[serde(borrow)]
+    pub weights: F32s<'a>,
+}
+
+impl<'a> Body<'a> {
+    /// The `f32`s at `[at, at + len)` of the arena, as little-endian bytes.
+    pub fn span(&self, at: usize, len: usize) -> F32s<'a> {
+        F32s(self.weights.0.get(at * 4..(at + len) * 4).unwrap_or(&[]))
+    }
+    /// `F`, row-major.
+    pub fn f(&self) -> F32s<'a> {
+        self.span(F_AT, AUG_DIM * AUG_DIM)
+    }
+    /// `B`, row-major.
+    pub fn b(&self) -> F32s<'a> {
+        self.span(B_AT, AUG_DIM * INPUT_DIM)
+    }
+    /// Layer `k` of `net`: its input-major weight and its bias.
+    pub fn layer(&self, net: Net, k: usize) -> (F32s<'a>, F32s<'a>) {
+        match layer_span(net, k) {
+            Some((at, i, o)) => (self.span(at, i * o), self.span(at + i * o, o)),
+            None => (F32s(&[]), F32s(&[])),
+        }
+    }
 }
 
 /// A whole blob.
@@ -262,8 +328,22 @@ impl<'a> Blob<'a> {
     }
 
     /// Writes the blob with its CRC into `buf`, returning the used part.
+    /// `body.pad` is chosen here (its value in `self` is ignored) so that
+    /// the arena starts at a multiple of 4 bytes from `buf[0]`.
     pub fn to_slice<'b>(&self, buf: &'b mut [u8]) -> Result<&'b mut [u8], Error> {
-        postcard::to_slice_crc32(self, buf, CRC.digest()).map_err(|_| Error::InputBadLength)
+        const ZEROS: [u8; 3] = [0; 3];
+        let mut blob = *self;
+        blob.body.pad = &[];
+        let n = postcard::to_slice_crc32(&blob, buf, CRC.digest())
+            .map_err(|_| Error::InputBadLength)?
+            .len();
+        // The arena is followed by the 4 CRC bytes only; the pad's length
+        // prefix is one byte whatever its length (0-3).
+        let start = n
+            .checked_sub(4 + blob.body.weights.0.len())
+            .ok_or(Error::InputBadLength)?;
+        blob.body.pad = ZEROS.get(..(4 - start % 4) % 4).unwrap_or(&[]);
+        postcard::to_slice_crc32(&blob, buf, CRC.digest()).map_err(|_| Error::InputBadLength)
     }
 
     /// Checks every array's length and every value's finiteness.
@@ -276,27 +356,15 @@ impl<'a> Blob<'a> {
         if !b.norm_s.iter().all(|v| v.is_finite() && *v > 0.0) {
             return Err(Error::BlobNonFinite);
         }
-        let enc = [
-            (STATE_DIM, HIDDEN_DIM),
-            (HIDDEN_DIM, HIDDEN_DIM),
-            (HIDDEN_DIM, LATENT_DIM),
-        ];
-        let dec = [
-            (LATENT_DIM, HIDDEN_DIM),
-            (HIDDEN_DIM, HIDDEN_DIM),
-            (HIDDEN_DIM, STATE_DIM),
-        ];
-        for (layer, (i, o)) in b.encoder.iter().zip(enc) {
-            layer.check(i, o)?;
+        if b.pad.len() > 3 || b.pad.iter().any(|v| *v != 0) {
+            return Err(Error::BlobMisaligned);
         }
-        for (layer, (i, o)) in b.decoder.iter().zip(dec) {
-            layer.check(i, o)?;
-        }
-        b.f.check(AUG_DIM * AUG_DIM)?;
+        b.weights.check(ARENA_LEN)?;
         // The filter treats the parameters as static: their rows of F must
         // be the identity.
         let param_rows_identity =
-            b.f.iter()
+            b.f()
+                .iter()
                 .enumerate()
                 .skip(LATENT_DIM * AUG_DIM)
                 .all(|(k, v)| {
@@ -306,7 +374,6 @@ impl<'a> Blob<'a> {
         if !param_rows_identity {
             return Err(Error::BlobParamsNotStatic);
         }
-        b.b.check(AUG_DIM * INPUT_DIM)?;
         if !b.params.iter().all(|p| finite(&p.train_range)) {
             return Err(Error::BlobNonFinite);
         }

@@ -30,6 +30,10 @@ pub enum Error {
     /// The rows of `F` for the parameters are not the identity: the blob
     /// does not keep the parameters static, which the filter relies on.
     BlobParamsNotStatic,
+    /// The blob's weights do not lie at a 4-byte aligned address (keep the
+    /// blob in a buffer aligned to 4, e.g. [`crate::blob::Aligned`]), or
+    /// its padding is not what the format writes.
+    BlobMisaligned,
     /// A measurement holds NaN or an infinity, or is too large to be a
     /// real reading; the filter state was left unchanged.
     NonFiniteInput,
@@ -56,6 +60,7 @@ impl Error {
             Error::BlobTrailingBytes => "blob: trailing bytes after the end",
             Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
             Error::BlobParamsNotStatic => "blob: F does not keep the parameters static",
+            Error::BlobMisaligned => "blob: weights not 4-byte aligned in memory",
             Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
             Error::FilterNotPositiveDefinite => {
                 "filter: innovation covariance not positive definite"

@@ -1,8 +1,11 @@
 //! The model read from a blob: normalisation, encoder `phi`, decoder
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
-use crate::blob::{Activation, Blob, Layer};
+use crate::blob::{Activation, Blob, Net, layer_span};
 use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
+
+#[cfg(target_endian = "big")]
+compile_error!("the blob's weights are little-endian f32 read in place: little-endian targets only");
 
 /// The latent rows of `F`, `C = [A B]` (row-major), decoded once: the
 /// filter reads them every step. The parameter rows are the identity
@@ -11,15 +14,68 @@ pub type KoopmanRows = [[f32; AUG_DIM]; LATENT_DIM];
 /// `C^T`, the same numbers column by column (AUG rows of LATENT).
 pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
 
+/// One MLP, `I -> H -> H -> O`, its weights borrowed from the blob as
+/// typed arrays (input-major: `w[j]` is input `j`'s weights).
+#[derive(Debug, Clone, Copy)]
+struct Mlp<'a, const I: usize, const H: usize, const O: usize> {
+    w0: &'a [[f32; H]; I],
+    b0: &'a [f32; H],
+    w1: &'a [[f32; H]; H],
+    b1: &'a [f32; H],
+    w2: &'a [[f32; O]; H],
+    b2: &'a [f32; O],
+}
+
+/// `R x C` values at `at` of the arena, as rows.
+fn rows<const R: usize, const C: usize>(a: &[f32], at: usize) -> Result<&[[f32; C]; R], Error> {
+    let s = a.get(at..).ok_or(Error::BlobShapeMismatch)?;
+    let (chunks, _) = s.as_chunks::<C>();
+    chunks.first_chunk::<R>().ok_or(Error::BlobShapeMismatch)
+}
+
+impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
+    fn from_arena(a: &'a [f32], net: Net) -> Result<Self, Error> {
+        let at = |k| {
+            layer_span(net, k)
+                .map(|(at, i, o)| (at, at + i * o))
+                .ok_or(Error::BlobShapeMismatch)
+        };
+        let ((w0, b0), (w1, b1), (w2, b2)) = (at(0)?, at(1)?, at(2)?);
+        let one = |at| rows::<1, H>(a, at).map(|[r]| r);
+        Ok(Mlp {
+            w0: rows(a, w0)?,
+            b0: one(b0)?,
+            w1: rows(a, w1)?,
+            b1: one(b1)?,
+            w2: rows(a, w2)?,
+            b2: rows::<1, O>(a, b2).map(|[r]| r)?,
+        })
+    }
+
+    /// `act(act(x W0 + b0) W1 + b1) W2 + b2`.
+    #[inline]
+    fn forward<const B: usize>(&self, x: &[f32; I], act: Activation) -> [f32; O] {
+        let mut h0 = [0.0; H];
+        let mut h1 = [0.0; H];
+        let mut out = [0.0; O];
+        dense::<I, H, 16>(self.w0, self.b0, x, &mut h0, Some(act));
+        dense::<H, H, 16>(self.w1, self.b1, &h0, &mut h1, Some(act));
+        dense::<H, O, B>(self.w2, self.b2, &h1, &mut out, None);
+        out
+    }
+}
+
 /// A validated model whose weights stay in the bytes it was read from.
 ///
 /// Only the latent rows of `F` are copied out of the blob, by rows and by
 /// columns ([`KoopmanRows`], [`KoopmanColumns`], 1152 bytes each), as
 /// `f32` the filter can load directly; the MLP weights (the bulk of the
-/// blob) are read in place.
+/// blob) are read in place as `&[f32]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Model<'a> {
     blob: Blob<'a>,
+    encoder: Mlp<'a, STATE_DIM, HIDDEN_DIM, LATENT_DIM>,
+    decoder: Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
     c: KoopmanRows,
     ct: KoopmanColumns,
 }
@@ -33,52 +89,65 @@ fn activate(v: f32, act: Option<Activation>) -> f32 {
     }
 }
 
-/// Lanes of the dot products in [`dense`].
-const LANES: usize = 8;
-
-/// `out = act(W input + b)`, with `W` output-major in the layer.
-///
-/// Each dot product runs in [`LANES`] interleaved partial sums (lane `l`
-/// takes the inputs `j = l mod LANES`), added pairwise at the end, then
-/// the bias. The order is fixed, so every target computes the same bits;
-/// the lanes let a host CPU use its vector units and shorten the chain of
-/// dependent additions.
+/// `out = act(x W + b)` with `W` input-major (`w[j]`: input `j`'s
+/// weights), computed `B` outputs at a time as a sum of scaled rows:
+/// `out = sum_j x_j W_j + b` over the inputs that are not zero (after a
+/// ReLU about half are), in the order of `j`, then the bias. Skipping a
+/// zero input changes no bit of the result; the order is fixed, so every
+/// target computes the same bits. `B` divides `O`.
 #[inline]
-fn dense<const I: usize, const O: usize>(
-    layer: &Layer<'_>,
-    input: &[f32; I],
+fn dense<const I: usize, const O: usize, const B: usize>(
+    w: &[[f32; O]; I],
+    b: &[f32; O],
+    x: &[f32; I],
     out: &mut [f32; O],
     act: Option<Activation>,
 ) {
-    let (xs, x_rest) = input.as_chunks::<LANES>();
-    let rows = layer.weight.0.chunks_exact(I * 4);
-    for ((o, row), b) in out.iter_mut().zip(rows).zip(layer.bias.iter()) {
-        let (w, _) = row.as_chunks::<4>();
-        let (ws, w_rest) = w.as_chunks::<LANES>();
-        let mut lanes = [0.0f32; LANES];
-        for (x8, w8) in xs.iter().zip(ws) {
-            for ((l, x), w) in lanes.iter_mut().zip(x8).zip(w8) {
-                *l += x * f32::from_le_bytes(*w);
+    // The inputs that are not zero, with their weight rows.
+    let mut xs = [0.0f32; I];
+    let mut ws: [&[f32; O]; I] = [&[0.0; O]; I];
+    let mut n = 0;
+    for (xj, wj) in x.iter().zip(w) {
+        if *xj != 0.0 {
+            if let (Some(xd), Some(wd)) = (xs.get_mut(n), ws.get_mut(n)) {
+                *xd = *xj;
+                *wd = wj;
+            }
+            n += 1;
+        }
+    }
+    let (outs, _) = out.as_chunks_mut::<B>();
+    let (bias, _) = b.as_chunks::<B>();
+    for (k, (ob, bb)) in outs.iter_mut().zip(bias).enumerate() {
+        let at = k * B;
+        let mut acc = [0.0f32; B];
+        for (xj, wj) in xs.iter().zip(&ws).take(n) {
+            if let Some(wb) = wj.get(at..).and_then(|r| r.first_chunk::<B>()) {
+                for (a, wv) in acc.iter_mut().zip(wb) {
+                    *a += xj * wv;
+                }
             }
         }
-        let [l0, l1, l2, l3, l4, l5, l6, l7] = lanes;
-        let mut acc = ((l0 + l4) + (l1 + l5)) + ((l2 + l6) + (l3 + l7));
-        for (x, w) in x_rest.iter().zip(w_rest) {
-            acc += x * f32::from_le_bytes(*w);
+        for ((o, a), bv) in ob.iter_mut().zip(&acc).zip(bb) {
+            *o = activate(a + bv, act);
         }
-        *o = activate(acc + b, act);
     }
 }
 
 impl<'a> Model<'a> {
     /// Reads a blob (see [`Blob::from_bytes`] for every check made); the
     /// weights are borrowed from `bytes`, not copied.
+    ///
+    /// The weights must lie at a 4-byte aligned address (any heap buffer,
+    /// or [`crate::blob::Aligned`] for `include_bytes!`); otherwise
+    /// [`Error::BlobMisaligned`].
     pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
         let blob = Blob::from_bytes(bytes)?;
-        let mut c = [[0.0; AUG_DIM]; LATENT_DIM];
-        for (dst, src) in c.iter_mut().flatten().zip(blob.body.f.iter()) {
-            *dst = src;
-        }
+        let arena: &'a [f32] =
+            bytemuck::try_cast_slice(blob.body.weights.0).map_err(|_| Error::BlobMisaligned)?;
+        let encoder = Mlp::from_arena(arena, Net::Encoder)?;
+        let decoder = Mlp::from_arena(arena, Net::Decoder)?;
+        let c: KoopmanRows = *rows(arena, crate::blob::F_AT)?;
         let mut ct = [[0.0; LATENT_DIM]; AUG_DIM];
         for (i, row) in c.iter().enumerate() {
             for (col, v) in ct.iter_mut().zip(row) {
@@ -87,7 +156,13 @@ impl<'a> Model<'a> {
                 }
             }
         }
-        Ok(Model { blob, c, ct })
+        Ok(Model {
+            blob,
+            encoder,
+            decoder,
+            c,
+            ct,
+        })
     }
 
     /// The latent rows of `F`.
@@ -129,46 +204,32 @@ impl<'a> Model<'a> {
 
     /// Encoder on a normalised state.
     pub fn encode(&self, x_n: &State) -> Latent {
-        let [l0, l1, l2] = &self.blob.body.encoder;
-        let act = Some(self.blob.body.activation);
-        let mut h0 = [0.0; HIDDEN_DIM];
-        let mut h1 = [0.0; HIDDEN_DIM];
-        let mut y = [0.0; LATENT_DIM];
-        dense(l0, x_n, &mut h0, act);
-        dense(l1, &h0, &mut h1, act);
-        dense(l2, &h1, &mut y, None);
-        y
+        self.encoder
+            .forward::<LATENT_DIM>(x_n, self.blob.body.activation)
     }
 
     /// Decoder to a normalised state.
     pub fn decode(&self, y: &Latent) -> State {
-        let [l0, l1, l2] = &self.blob.body.decoder;
-        let act = Some(self.blob.body.activation);
-        let mut h0 = [0.0; HIDDEN_DIM];
-        let mut h1 = [0.0; HIDDEN_DIM];
-        let mut x = [0.0; STATE_DIM];
-        dense(l0, y, &mut h0, act);
-        dense(l1, &h0, &mut h1, act);
-        dense(l2, &h1, &mut x, None);
-        x
+        self.decoder
+            .forward::<STATE_DIM>(y, self.blob.body.activation)
     }
 
     /// Element `(i, j)` of `F` (0 outside).
     #[inline]
     pub fn f(&self, i: usize, j: usize) -> f32 {
-        self.blob.body.f.get(i * AUG_DIM + j).unwrap_or(0.0)
+        if j >= AUG_DIM {
+            return 0.0;
+        }
+        self.blob.body.f().get(i * AUG_DIM + j).unwrap_or(0.0)
     }
 
-    /// One step of the augmented linear model: `g' = F g`.
+    /// One step of the augmented linear model: `g' = F g`, that is
+    /// `y' = C g` and `p' = p` (the parameter rows of `F` are the
+    /// identity).
     pub fn advance(&self, g: &Aug) -> Aug {
-        let mut out = [0.0; AUG_DIM];
-        let rows = self.blob.body.f.0.chunks_exact(AUG_DIM * 4);
-        for (o, row) in out.iter_mut().zip(rows) {
-            let mut acc = 0.0;
-            for (x, w) in g.iter().zip(row.chunks_exact(4)) {
-                acc += x * w.first_chunk::<4>().map_or(0.0, |a| f32::from_le_bytes(*a));
-            }
-            *o = acc;
+        let mut out = *g;
+        for (o, row) in out.iter_mut().zip(&self.c) {
+            *o = row.iter().zip(g).fold(0.0, |acc, (w, x)| acc + w * x);
         }
         out
     }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use burn::nn::Linear;
 use burn::tensor::{Tensor, TensorData};
-use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, Layer, ParamSpec};
+use estimator::blob::{ARENA_LEN, Blob, Body, F32s, FilterSpec, Header, ParamSpec};
 use estimator::{AUG_DIM, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
 use serde::{Deserialize, Serialize};
 
@@ -31,9 +31,10 @@ pub fn le_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
-/// A burn `Linear` (weight `[d_in, d_out]`, `y = x W + b`) as the blob's
-/// output-major `(d_in, d_out, W rows, b)`.
-pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
+/// A burn `Linear` (weight `[d_in, d_out]`, `y = x W + b`) as the blob
+/// stores it: `(d_in, d_out, W, b)` with `W` input-major, `d_in` rows of
+/// `d_out` (burn's own layout, copied as it is).
+pub fn linear_to_blob(l: &Linear) -> (usize, usize, Vec<f32>, Vec<f32>) {
     let w = l.weight.val();
     let [d_in, d_out] = w.dims();
     let w: Vec<f32> = w
@@ -41,12 +42,6 @@ pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
         .convert::<f32>()
         .try_to_vec::<f32>()
         .unwrap_or_default();
-    let mut out = vec![0.0f32; d_in * d_out];
-    for i in 0..d_in {
-        for o in 0..d_out {
-            out[o * d_in + i] = w[i * d_out + o];
-        }
-    }
     let b: Vec<f32> = match &l.bias {
         Some(b) => b
             .val()
@@ -56,25 +51,29 @@ pub fn linear_to_blob(l: &Linear) -> (u16, u16, Vec<u8>, Vec<u8>) {
             .unwrap_or_default(),
         None => vec![0.0; d_out],
     };
-    (d_in as u16, d_out as u16, le_bytes(&out), le_bytes(&b))
+    (d_in, d_out, w, b)
 }
 
-/// Owned byte arrays a [`Blob`] borrows from.
+/// The weight arena a [`Blob`] borrows from, as little-endian bytes.
 pub struct BlobParts {
-    enc: Vec<(u16, u16, Vec<u8>, Vec<u8>)>,
-    dec: Vec<(u16, u16, Vec<u8>, Vec<u8>)>,
-    f: Vec<u8>,
-    b: Vec<u8>,
+    arena: Vec<u8>,
 }
 
 impl BlobParts {
-    /// From the MLPs and `F` (row-major AUG x AUG).
+    /// From the MLPs and `F` (row-major AUG x AUG), in the arena's order
+    /// (see `estimator::blob`): encoder layers, decoder layers (weight then
+    /// bias each), `F`, `B` (zero: no input is modelled yet).
     pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32]) -> Self {
+        let mut arena: Vec<f32> = Vec::with_capacity(ARENA_LEN);
+        for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
+            let (_, _, w, b) = linear_to_blob(l);
+            arena.extend(w);
+            arena.extend(b);
+        }
+        arena.extend_from_slice(f);
+        arena.extend([0.0; AUG_DIM * INPUT_DIM]);
         BlobParts {
-            enc: [&enc.l0, &enc.l1, &enc.l2].map(linear_to_blob).into(),
-            dec: [&dec.l0, &dec.l1, &dec.l2].map(linear_to_blob).into(),
-            f: le_bytes(f),
-            b: le_bytes(&[0.0; AUG_DIM * INPUT_DIM]),
+            arena: le_bytes(&arena),
         }
     }
 
@@ -86,12 +85,6 @@ impl BlobParts {
         filter: FilterSpec,
         params: [ParamSpec<'a>; PARAM_DIM],
     ) -> Blob<'a> {
-        let layer = |(i, o, w, b): &'a (u16, u16, Vec<u8>, Vec<u8>)| Layer {
-            d_in: *i,
-            d_out: *o,
-            weight: F32s(w),
-            bias: F32s(b),
-        };
         Blob {
             header: Header::CURRENT,
             body: Body {
@@ -100,19 +93,9 @@ impl BlobParts {
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),
                 params,
-                encoder: [
-                    layer(&self.enc[0]),
-                    layer(&self.enc[1]),
-                    layer(&self.enc[2]),
-                ],
-                decoder: [
-                    layer(&self.dec[0]),
-                    layer(&self.dec[1]),
-                    layer(&self.dec[2]),
-                ],
-                f: F32s(&self.f),
-                b: F32s(&self.b),
                 filter,
+                pad: &[],
+                weights: F32s(&self.arena),
             },
         }
     }
@@ -426,13 +409,11 @@ mod tests {
     }
 
     #[test]
-    fn linear_lands_output_major() {
+    fn linear_lands_input_major() {
         let (d_in, d_out, w, b) = linear_to_blob(&asymmetric_linear(2, 3));
         assert_eq!((d_in, d_out), (2, 3));
-        let w: Vec<f32> = F32s(&w).iter().collect();
-        let b: Vec<f32> = F32s(&b).iter().collect();
-        // Golden, from the formula above: row o holds W[0][o], W[1][o].
-        assert_eq!(w, [11.0, 21.0, 12.0, 22.0, 13.0, 23.0]);
+        // Golden, from the formula above: row i holds W[i][0..3].
+        assert_eq!(w, [11.0, 12.0, 13.0, 21.0, 22.0, 23.0]);
         assert_eq!(b, [-1.0, -2.0, -3.0]);
     }
 

@@ -26,6 +26,7 @@ use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
+use estimator::blob::Aligned;
 use estimator::{Estimator, Model, Trust};
 
 mod rollouts {
@@ -33,7 +34,9 @@ mod rollouts {
 }
 
 /// The shipped weights, left in flash and read in place.
-static BLOB: &[u8] = include_bytes!("../../../weights/pendulum.kkf");
+/// The blob at a 4-aligned address, so its weights are read as `f32` in
+/// place.
+static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/pendulum.kkf"));
 
 /// Turns of `asm::delay` in the calibration: `2 (n + 1)` instructions.
 const CALIBRATION_TURNS: u32 = 1_000_000;
@@ -235,7 +238,7 @@ fn run(line: &mut Line) -> bool {
         .uint(u64::from(ticks(before, after)))
         .send();
 
-    let model = match Model::from_bytes(BLOB) {
+    let model = match Model::from_bytes(&BLOB.0) {
         Ok(m) => m,
         Err(e) => {
             line.str("error: blob refused: ").str(e.message()).send();
@@ -243,7 +246,7 @@ fn run(line: &mut Line) -> bool {
         }
     };
     line.str("sizes blob=")
-        .uint(BLOB.len() as u64)
+        .uint(BLOB.0.len() as u64)
         .str(" model=")
         .uint(core::mem::size_of::<Model>() as u64)
         .str(" estimator=")
