@@ -59,6 +59,34 @@ fn combo<'r, const N: usize>(terms: impl Iterator<Item = (f32, &'r [f32; N])>) -
     acc
 }
 
+// `predict_update` splits the latent rows in four groups of four.
+const _: () = assert!(LATENT_DIM == 16);
+
+/// The last `W` columns of rows `N C^T` (`ct` = `C^T`), written into the
+/// last `W` entries of `rows`: the part of four rows of `P'_yy` on and
+/// above the diagonal. Each entry's sum runs in the order of `k`, as in
+/// [`combo`].
+#[inline(always)]
+fn upper_rows<const W: usize>(
+    rows: &mut [[f32; LATENT_DIM]; 4],
+    n: &[[f32; AUG_DIM]; 4],
+    ct: &[[f32; LATENT_DIM]; AUG_DIM],
+) {
+    for (row, ni) in rows.iter_mut().zip(n) {
+        let mut acc = [0.0f32; W];
+        for (a, ctk) in ni.iter().zip(ct) {
+            if let Some(x) = ctk.last_chunk::<W>() {
+                for (o, x) in acc.iter_mut().zip(x) {
+                    *o += a * x;
+                }
+            }
+        }
+        if let Some(dst) = row.last_chunk_mut::<W>() {
+            *dst = acc;
+        }
+    }
+}
+
 /// Copies the upper triangle onto the lower one.
 fn mirror_upper<const N: usize>(m: &mut [[f32; N]; N]) {
     for i in 1..N {
@@ -339,9 +367,17 @@ impl<'m> Estimator<'m> {
         for (ni, ci) in n.iter_mut().zip(c) {
             *ni = combo(ci.iter().copied().zip(&self.p));
         }
+        // Only the upper triangle is needed: rows 4g..4g+3 from column 4g.
         let mut pyy: LatentSquare = [[0.0; LATENT_DIM]; LATENT_DIM];
-        for (row, ni) in pyy.iter_mut().zip(&n) {
-            *row = combo(ni.iter().copied().zip(ct));
+        {
+            let (rows, _) = pyy.as_chunks_mut::<4>();
+            let (ns, _) = n.as_chunks::<4>();
+            if let ([r0, r1, r2, r3], [n0, n1, n2, n3]) = (rows, ns) {
+                upper_rows::<16>(r0, n0, ct);
+                upper_rows::<12>(r1, n1, ct);
+                upper_rows::<8>(r2, n2, ct);
+                upper_rows::<4>(r3, n3, ct);
+            }
         }
         mirror_upper(&mut pyy);
         let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
@@ -369,6 +405,7 @@ impl<'m> Estimator<'m> {
                 *d = (*d + q) + r;
             }
         }
+        let s_full = s;
         let mut d_inv = [0.0f32; LATENT_DIM];
         ldl(&mut s, &mut d_inv)?;
         let x = unit_lower_inverse(&s);
@@ -398,9 +435,29 @@ impl<'m> Estimator<'m> {
             *gi += dot(mta, &nu);
         }
 
-        // Covariance, (I - K H) P' by blocks:
-        // P_yy = R - R Si R,  P_yp = R M,  P_pp = P'_pp - P'_py M
-        // (P_yy exactly symmetric as Si is; P_pp's upper triangle mirrored).
+        // Covariance by blocks. Joseph's form
+        // P = (I - K H) P' (I - K H)^T + K R K^T, with I - K H =
+        // [R Si, 0; -M^T, I], gives, using S M (T below):
+        //   P_yp = 2 R M - R Si S M,
+        //   P_pp = P'_pp - M^T P'_yp - P'_py M + M^T S M,
+        // which an error in Si (or M) changes only to second order: this
+        // keeps P positive definite when S is ill conditioned. For P_yy
+        // the standard form R - R Si R is kept (its Joseph form costs
+        // two more 16^3 products); it is exactly symmetric as Si is.
+        let mut tt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, tta) in tt.iter_mut().enumerate() {
+            // T^T row a = sum_k M[k][a] S_k (S symmetric).
+            *tta = combo(
+                mt.get(a)
+                    .into_iter()
+                    .flat_map(|mta| mta.iter().copied().zip(&s_full)),
+            );
+        }
+        // (Si T)^T row a = sum_k T[k][a] Si_k.
+        let mut sit = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (sita, tta) in sit.iter_mut().zip(&tt) {
+            *sita = combo(tta.iter().copied().zip(&si));
+        }
         let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
         for (i, (prow, si_row)) in p.iter_mut().zip(&si).enumerate() {
             let ri = spec.r.get(i).copied().unwrap_or(0.0);
@@ -409,16 +466,30 @@ impl<'m> Estimator<'m> {
                 let diag = if i == j { ri } else { 0.0 };
                 *pij = diag - (ri * rj) * sij;
             }
-            for (pij, mta) in prow.iter_mut().skip(LATENT_DIM).zip(&mt) {
-                *pij = ri * mta.get(i).copied().unwrap_or(0.0);
+            for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
+                let m = mta.get(i).copied().unwrap_or(0.0);
+                let st = sita.get(i).copied().unwrap_or(0.0);
+                *pij = ri * (2.0 * m - st);
             }
         }
         for (a, (prow, ppa)) in p.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
+            let Some(mta) = mt.get(a) else {
+                continue;
+            };
             for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
-                let dec = pyp.iter().zip(mtb).fold(0.0, |acc, (pk, mkb)| {
-                    acc + pk.get(a).copied().unwrap_or(0.0) * mkb
-                });
-                *pab = ppa.get(b).copied().unwrap_or(0.0) - dec;
+                let (mut cross, mut quad) = (0.0f32, 0.0f32);
+                for (((pk, mka), mkb), tkb) in pyp
+                    .iter()
+                    .zip(mta)
+                    .zip(mtb)
+                    .zip(tt.get(b).into_iter().flatten())
+                {
+                    let pka = pk.get(a).copied().unwrap_or(0.0);
+                    let pkb = pk.get(b).copied().unwrap_or(0.0);
+                    cross += mka * pkb + pka * mkb;
+                    quad += mka * tkb;
+                }
+                *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
             }
         }
         mirror_upper(&mut p);

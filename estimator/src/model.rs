@@ -5,7 +5,9 @@ use crate::blob::{Activation, Blob, Net, layer_span};
 use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
 
 #[cfg(target_endian = "big")]
-compile_error!("the blob's weights are little-endian f32 read in place: little-endian targets only");
+compile_error!(
+    "the blob's weights are little-endian f32 read in place: little-endian targets only"
+);
 
 /// The latent rows of `F`, `C = [A B]` (row-major), decoded once: the
 /// filter reads them every step. The parameter rows are the identity

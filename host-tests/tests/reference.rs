@@ -19,7 +19,10 @@ fn filter_matches_an_f64_reference_over_whole_test_rollouts() {
         let mut reference = Reference::new(&m, &m.encode(&m.normalise(&xs[0])));
         for x in &xs[1..] {
             let out = est.step(x).unwrap();
-            reference.step(&m.encode(&m.normalise(x)));
+            assert!(
+                reference.step(&m.encode(&m.normalise(x))),
+                "reference: S singular"
+            );
             let l_ref = reference.g[LATENT_DIM];
             let std_ref = reference.p[(LATENT_DIM, LATENT_DIM)].sqrt();
             let err = (out.params[0] as f64 - l_ref).abs();

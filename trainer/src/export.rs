@@ -462,8 +462,16 @@ mod tests {
         let blob = parts.blob(&norm, &cfg, filter, params);
         let bytes = blob_bytes(&blob).unwrap();
         let back = Model::from_bytes(&bytes).unwrap();
-        // Exactly the same numbers come back: the blob stores f32 bits.
-        assert_eq!(*back.blob(), blob);
+        // Exactly the same numbers come back (the blob stores f32 bits),
+        // with the 0-3 padding bytes the writer chose, which put the arena
+        // at a multiple of 4 bytes from the blob's start.
+        let pad = back.blob().body.pad;
+        assert!(pad.len() <= 3 && pad.iter().all(|b| *b == 0));
+        let offset = back.blob().body.weights.0.as_ptr() as usize - bytes.as_ptr() as usize;
+        assert_eq!(offset % 4, 0, "arena at byte {offset}");
+        let mut want = blob;
+        want.body.pad = pad;
+        assert_eq!(*back.blob(), want);
         for (i, j) in [(0, 0), (3, 17), (17, 2), (17, 17)] {
             assert_eq!(back.f(i, j), f[i * AUG_DIM + j]);
         }

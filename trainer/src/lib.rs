@@ -3,6 +3,7 @@
 //! The `koopman` binary (`main.rs`) is a thin command line over this.
 
 pub mod baseline;
+pub mod bench;
 pub mod closeloop;
 pub mod config;
 pub mod data;
@@ -14,6 +15,7 @@ pub mod io;
 pub mod lstsq;
 pub mod model;
 pub mod plot;
+pub mod reference;
 pub mod report;
 pub mod sim;
 pub mod table1;

@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 
 use trainer::config::{EffectRange, ModelKind, TrainConfig};
 use trainer::sim::Effect;
-use trainer::{closeloop, data, diagnose, eval, export, import, report, table1, train};
+use trainer::{bench, closeloop, data, diagnose, eval, export, import, report, table1, train};
 
 #[derive(Parser)]
 #[command(
@@ -108,6 +108,20 @@ enum Cmd {
         #[arg(long)]
         steps: Option<usize>,
         /// One JSON object per rollout and line.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Host time per estimator step (step, encoder, filter) against the
+    /// peers (burn's forward pass, an f64 DMatrix Kalman filter), in a few
+    /// seconds.
+    Bench {
+        /// Weights blob.
+        #[arg(long, default_value = "weights/pendulum.kkf")]
+        weights: PathBuf,
+        /// Seconds to spend in all (about).
+        #[arg(long, default_value_t = 3.0)]
+        seconds: f64,
+        /// One JSON object instead of the table.
         #[arg(long)]
         json: bool,
     },
@@ -364,6 +378,21 @@ fn run(cmd: Cmd) -> Result<()> {
                 );
             }
         },
+        Cmd::Bench {
+            weights,
+            seconds,
+            json,
+        } => {
+            let bytes = read_blob(&weights)?;
+            let model =
+                estimator::Model::from_bytes(&bytes).map_err(|e| blob_error(&weights, e))?;
+            let r = bench::run(&model, seconds);
+            if json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                print!("{}", bench::table(&r));
+            }
+        }
         Cmd::Estimate {
             weights,
             data,

@@ -494,3 +494,46 @@ fn close_loop_runs_the_whole_loop_on_synthetic_data() {
         assert!(out.join(f).exists(), "{f} missing");
     }
 }
+
+#[test]
+fn bench_reports_ours_and_the_peers_per_step() {
+    let out = run_ok(
+        koopman()
+            .current_dir(root())
+            .args(["bench", "--seconds", "0.3", "--json"]),
+    );
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    for k in [
+        "step_ns",
+        "encoder_ns",
+        "filter_ns",
+        "peer_burn_encoder_ns",
+        "peer_f64_filter_ns",
+        "peer_step_ns",
+    ] {
+        let ns = v[k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{k} missing: {out}"));
+        // A step of this size takes between a nanosecond and a millisecond
+        // on any host that runs the tests.
+        assert!(ns > 1.0 && ns < 1e6, "{k} = {ns} ns");
+    }
+    assert_eq!(v["steps"], 64);
+    let ratio = v["step_speedup"].as_f64().unwrap();
+    let want = v["peer_step_ns"].as_f64().unwrap() / v["step_ns"].as_f64().unwrap();
+    assert!((ratio - want).abs() < 1e-9 * want);
+    let table = run_ok(
+        koopman()
+            .current_dir(root())
+            .args(["bench", "--seconds", "0.3"]),
+    );
+    for row in [
+        "step",
+        "encoder",
+        "filter",
+        "burn forward",
+        "f64 DMatrix filter",
+    ] {
+        assert!(table.contains(row), "{row} missing from:\n{table}");
+    }
+}

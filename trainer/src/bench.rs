@@ -1,0 +1,221 @@
+//! `koopman bench`: host time per estimator step, in a few seconds, with
+//! the peers a user would reach for instead measured in the same run.
+//!
+//! Each figure is the median, over batches, of the time of one pass over
+//! [`window`] (the protocol's 64-step estimation window of one test
+//! rollout) divided by its steps. Measured:
+//! - `step`: [`Estimator::step`] (normalise, encode, filter);
+//! - `encoder`: [`Model::encode`] alone;
+//! - `filter`: [`Estimator::step_latent`] alone (measurement encoded);
+//! - peer `burn_encoder`: the same encoder architecture (2 -> 128 -> 128
+//!   -> 16, the blob's activation, random weights: burn's time does not
+//!   depend on them) through burn's forward pass, flex CPU backend, a
+//!   batch of one;
+//! - peer `f64_filter`: [`Reference`], the textbook filter on dynamic f64
+//!   matrices (nalgebra `DMatrix`);
+//! - peer `step`: the two together, the straightforward host pipeline.
+//!
+//! For figures with confidence intervals use the criterion bench,
+//! `cargo bench -p host-tests --bench step`, which measures the same
+//! functions.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use burn::tensor::{Device, Tensor, TensorData};
+use estimator::{Estimator, Latent, Model, State};
+use serde::Serialize;
+
+use crate::data::{TEST_LENGTHS, test_set};
+use crate::model::Mlp;
+use crate::reference::Reference;
+
+/// Steps in [`window`]: the protocol's estimation window.
+pub const WINDOW: usize = 64;
+/// The test rollout [`window`] is taken from (L = 3.5, in distribution).
+pub const WINDOW_ROLLOUT: usize = 34;
+
+/// The first [`WINDOW`] raw states of test rollout [`WINDOW_ROLLOUT`]
+/// (L = 3.5, theta_0 = pi/2 + 4 (0.4 pi) / 9): what the benchmarks and the
+/// instruction counts step through.
+pub fn window() -> Vec<State> {
+    let ds = test_set(0, &TEST_LENGTHS, &[]);
+    ds.rollouts
+        .get(WINDOW_ROLLOUT)
+        .map(|r| {
+            r.xs.iter()
+                .take(WINDOW)
+                .map(|x| [x[0] as f32, x[1] as f32])
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Nanoseconds per step, ours and the peers', and their ratios.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    /// [`Estimator::step`], ns per step.
+    pub step_ns: f64,
+    /// [`Model::encode`], ns per step.
+    pub encoder_ns: f64,
+    /// [`Estimator::step_latent`], ns per step.
+    pub filter_ns: f64,
+    /// burn's forward pass of the same encoder, ns per step.
+    pub peer_burn_encoder_ns: f64,
+    /// The f64 `DMatrix` filter, ns per step.
+    pub peer_f64_filter_ns: f64,
+    /// burn's encoder and the f64 filter together, ns per step.
+    pub peer_step_ns: f64,
+    /// `peer_step_ns / step_ns`.
+    pub step_speedup: f64,
+    /// `peer_burn_encoder_ns / encoder_ns`.
+    pub encoder_speedup: f64,
+    /// `peer_f64_filter_ns / filter_ns`.
+    pub filter_speedup: f64,
+    /// Steps per measured pass.
+    pub steps: usize,
+    /// Measured passes per figure (median taken).
+    pub batches: usize,
+}
+
+/// Median time per step of `pass` (which runs `steps` steps), over
+/// batches filling about `budget`.
+fn per_step(budget: Duration, steps: usize, mut pass: impl FnMut()) -> (f64, usize) {
+    // Warm up and size the batches: at least 1 ms each.
+    let t0 = Instant::now();
+    pass();
+    let once = t0.elapsed().max(Duration::from_nanos(1));
+    let reps = (Duration::from_millis(1).as_nanos() / once.as_nanos()).max(1) as usize;
+    let batches = ((budget.as_nanos() / (once.as_nanos() * reps as u128)) as usize).clamp(5, 200);
+    let mut times: Vec<f64> = (0..batches)
+        .map(|_| {
+            let t = Instant::now();
+            for _ in 0..reps {
+                pass();
+            }
+            t.elapsed().as_nanos() as f64 / (reps * steps) as f64
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], batches)
+}
+
+/// Measures everything for about `seconds` in all.
+pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
+    let xs = window();
+    let zs: Vec<Latent> = xs
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+    let budget = Duration::from_secs_f64((seconds / 6.0).max(0.01));
+    let n = xs.len();
+
+    let mut est = Estimator::new(model);
+    let (step_ns, batches) = per_step(budget, n, || {
+        est.reset();
+        for x in &xs {
+            black_box(est.step(black_box(x)).ok());
+        }
+    });
+    let (encoder_ns, _) = per_step(budget, n, || {
+        for x in &xs {
+            black_box(model.encode(&model.normalise(black_box(x))));
+        }
+    });
+    let (filter_ns, _) = per_step(budget, n, || {
+        est.reset();
+        for z in &zs {
+            black_box(est.step_latent(black_box(z)).ok());
+        }
+    });
+
+    let device = Device::flex();
+    let act = model.blob().body.activation;
+    let enc = Mlp::new(2, estimator::HIDDEN_DIM, estimator::LATENT_DIM, &device);
+    let burn_encode = |x: &State| -> Vec<f32> {
+        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
+        enc.forward(t, act)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap_or_default()
+    };
+    let (peer_burn_encoder_ns, _) = per_step(budget, n, || {
+        for x in &xs {
+            black_box(burn_encode(&model.normalise(black_box(x))));
+        }
+    });
+    let first = zs.first().copied().unwrap_or_default();
+    let (peer_f64_filter_ns, _) = per_step(budget, n, || {
+        let mut r = Reference::new(model, &first);
+        for z in zs.iter().skip(1) {
+            black_box(r.step(black_box(z)));
+        }
+    });
+    let (peer_step_ns, _) = per_step(budget, n, || {
+        let Some(x0) = xs.first() else { return };
+        let mut r = Reference::new(model, &burn_encode(&model.normalise(x0)));
+        for x in xs.iter().skip(1) {
+            black_box(r.step(&burn_encode(&model.normalise(x))));
+        }
+    });
+    BenchReport {
+        step_ns,
+        encoder_ns,
+        filter_ns,
+        peer_burn_encoder_ns,
+        peer_f64_filter_ns,
+        peer_step_ns,
+        step_speedup: peer_step_ns / step_ns,
+        encoder_speedup: peer_burn_encoder_ns / encoder_ns,
+        filter_speedup: peer_f64_filter_ns / filter_ns,
+        steps: n,
+        batches,
+    }
+}
+
+/// The report as a table.
+pub fn table(r: &BenchReport) -> String {
+    let row = |name: &str, ours: f64, peer_name: &str, peer: f64| {
+        format!(
+            "{name:<8} {:>10.3} us   {peer_name:<22} {:>10.3} us   {:>6.1}x\n",
+            ours / 1e3,
+            peer / 1e3,
+            peer / ours
+        )
+    };
+    let mut s = format!(
+        "per step, median of {} passes over {} steps (test rollout {WINDOW_ROLLOUT}, L = 3.5)\n\
+         {:<8} {:>13}   {:<22} {:>13}   {:>7}\n",
+        r.batches, r.steps, "", "estimator", "peer", "peer", "ratio"
+    );
+    s += &row("step", r.step_ns, "burn + f64 DMatrix", r.peer_step_ns);
+    s += &row(
+        "encoder",
+        r.encoder_ns,
+        "burn forward (flex)",
+        r.peer_burn_encoder_ns,
+    );
+    s += &row(
+        "filter",
+        r.filter_ns,
+        "f64 DMatrix filter",
+        r.peer_f64_filter_ns,
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn window_is_the_protocols_estimation_window() {
+        let xs = window();
+        assert_eq!(xs.len(), WINDOW);
+        let ds = test_set(0, &TEST_LENGTHS, &[]);
+        let r = &ds.rollouts[WINDOW_ROLLOUT];
+        assert_eq!(ds.sidecar.rollouts[WINDOW_ROLLOUT].length, 3.5);
+        assert_eq!(xs[0], [r.xs[0][0] as f32, r.xs[0][1] as f32]);
+        assert_eq!(xs[63], [r.xs[63][0] as f32, r.xs[63][1] as f32]);
+    }
+}

@@ -1,0 +1,66 @@
+//! An independent f64 Kalman filter over `[y; p]`, for the estimator to be
+//! checked against (host tests) and measured against (`koopman bench`,
+//! the criterion bench): dynamic matrices (nalgebra `DMatrix`), `S^-1` by
+//! LU instead of `L D L^T`, the textbook `K = P H^T S^-1` and
+//! `P = (I - K H) P` update, no use of structure.
+
+use estimator::{AUG_DIM, LATENT_DIM, Model};
+use nalgebra::{DMatrix, DVector};
+
+/// The reference filter's state and matrices.
+pub struct Reference {
+    /// `F`.
+    pub f: DMatrix<f64>,
+    /// `Q`.
+    pub q: DMatrix<f64>,
+    /// `R`.
+    pub r: DMatrix<f64>,
+    /// `H`.
+    pub h: DMatrix<f64>,
+    /// `g`.
+    pub g: DVector<f64>,
+    /// `P`.
+    pub p: DMatrix<f64>,
+}
+
+impl Reference {
+    /// Starts from `y = z0` and the blob's prior.
+    pub fn new(m: &Model<'_>, z0: &[f32]) -> Self {
+        let spec = &m.blob().body.filter;
+        let f = DMatrix::from_fn(AUG_DIM, AUG_DIM, |i, j| m.f(i, j) as f64);
+        let q = DMatrix::from_diagonal(&DVector::from_iterator(
+            AUG_DIM,
+            spec.q.iter().map(|&v| v as f64),
+        ));
+        let r = DMatrix::from_diagonal(&DVector::from_iterator(
+            LATENT_DIM,
+            spec.r.iter().map(|&v| v as f64),
+        ));
+        let h = DMatrix::from_fn(LATENT_DIM, AUG_DIM, |i, j| if i == j { 1.0 } else { 0.0 });
+        let g = DVector::from_iterator(
+            AUG_DIM,
+            z0.iter().chain(&spec.prior_mean).map(|&v| v as f64),
+        );
+        let p = DMatrix::from_diagonal(&DVector::from_iterator(
+            AUG_DIM,
+            spec.prior_var.iter().map(|&v| v as f64),
+        ));
+        Reference { f, q, r, h, g, p }
+    }
+
+    /// Predicts and updates with the encoded measurement `z`; false (and
+    /// the state unchanged) when `S` cannot be inverted.
+    pub fn step(&mut self, z: &[f32]) -> bool {
+        let z = DVector::from_iterator(LATENT_DIM, z.iter().map(|&v| v as f64));
+        let g = &self.f * &self.g;
+        let p = &self.f * &self.p * self.f.transpose() + &self.q;
+        let s = &self.h * &p * self.h.transpose() + &self.r;
+        let Some(s_inv) = s.lu().try_inverse() else {
+            return false;
+        };
+        let k = &p * self.h.transpose() * s_inv;
+        self.g = &g + &k * (z - &self.h * &g);
+        self.p = (DMatrix::identity(AUG_DIM, AUG_DIM) - &k * &self.h) * p;
+        true
+    }
+}
