@@ -148,14 +148,14 @@ pub enum Net {
     Decoder,
 }
 
+/// Length of one layer in the arena: weight then bias.
+const fn layer_len((d_in, d_out): (usize, usize)) -> usize {
+    d_in * d_out + d_out
+}
+
 const fn mlp_len(shapes: &[(usize, usize); N_LAYERS]) -> usize {
-    let mut n = 0;
-    let mut k = 0;
-    while k < N_LAYERS {
-        n += shapes[k].0 * shapes[k].1 + shapes[k].1;
-        k += 1;
-    }
-    n
+    let [l0, l1, l2] = *shapes;
+    layer_len(l0) + layer_len(l1) + layer_len(l2)
 }
 
 /// Offset of `F` in the arena, in `f32`s.
@@ -169,19 +169,17 @@ pub const ARENA_LEN: usize = B_AT + AUG_DIM * INPUT_DIM;
 /// `(weight offset, d_in, d_out)`; its bias follows the weight at
 /// `offset + d_in * d_out`. `None` for `k >= N_LAYERS`.
 pub const fn layer_span(net: Net, k: usize) -> Option<(usize, usize, usize)> {
-    if k >= N_LAYERS {
-        return None;
-    }
-    let (shapes, mut at) = match net {
+    let (shapes, at) = match net {
         Net::Encoder => (&ENCODER_SHAPES, 0),
         Net::Decoder => (&DECODER_SHAPES, mlp_len(&ENCODER_SHAPES)),
     };
-    let mut m = 0;
-    while m < k {
-        at += shapes[m].0 * shapes[m].1 + shapes[m].1;
-        m += 1;
+    let [l0, l1, l2] = *shapes;
+    match k {
+        0 => Some((at, l0.0, l0.1)),
+        1 => Some((at + layer_len(l0), l1.0, l1.1)),
+        2 => Some((at + layer_len(l0) + layer_len(l1), l2.0, l2.1)),
+        _ => None,
     }
-    Some((at, shapes[k].0, shapes[k].1))
 }
 
 /// Bytes kept at an address aligned to 4, so that a blob compiled into
