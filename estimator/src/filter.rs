@@ -492,9 +492,38 @@ impl<'m> Estimator<'m> {
                 *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
             }
         }
-        mirror_upper(&mut p);
+        // P_yy is exactly symmetric already (R_i R_j Si_ij, Si mirrored);
+        // the p rows take the transposes of the p columns, and the lower
+        // triangle of P_pp its upper one.
+        let (top, bottom) = p.split_at_mut(LATENT_DIM);
+        for (a, prow) in bottom.iter_mut().enumerate() {
+            for (dst, row) in prow.iter_mut().zip(top.iter()) {
+                *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            }
+        }
+        for a in 1..PARAM_DIM {
+            for b in 0..a {
+                let upper = p
+                    .get(LATENT_DIM + b)
+                    .and_then(|r| r.get(LATENT_DIM + a))
+                    .copied();
+                if let (Some(v), Some(d)) = (
+                    upper,
+                    p.get_mut(LATENT_DIM + a)
+                        .and_then(|r| r.get_mut(LATENT_DIM + b)),
+                ) {
+                    *d = v;
+                }
+            }
+        }
 
-        if g.iter().chain(p.iter().flatten()).all(|v| v.is_finite()) {
+        // One pass without early exit (vectorises): is anything NaN or
+        // infinite?
+        let finite = g
+            .iter()
+            .chain(p.iter().flatten())
+            .fold(true, |ok, v| ok & v.is_finite());
+        if finite {
             Ok((g, p))
         } else {
             Err(Error::FilterNonFinite)

@@ -109,23 +109,28 @@ fn dense<const I: usize, const O: usize, const B: usize>(
     let mut xs = [0.0f32; I];
     let mut ws: [&[f32; O]; I] = [&[0.0; O]; I];
     let mut n = 0;
+    // Without a branch on the value: which inputs a ReLU zeroed is data,
+    // and a mispredicted branch per input would cost more than the copy.
     for (xj, wj) in x.iter().zip(w) {
-        if *xj != 0.0 {
-            if let (Some(xd), Some(wd)) = (xs.get_mut(n), ws.get_mut(n)) {
-                *xd = *xj;
-                *wd = wj;
-            }
-            n += 1;
+        if let (Some(xd), Some(wd)) = (xs.get_mut(n), ws.get_mut(n)) {
+            *xd = *xj;
+            *wd = wj;
         }
+        n += usize::from(*xj != 0.0);
     }
+    let xs = xs.get(..n).unwrap_or(&[]);
+    let ws = ws.get(..n).unwrap_or(&[]);
     let (outs, _) = out.as_chunks_mut::<B>();
     let (bias, _) = b.as_chunks::<B>();
     for (k, (ob, bb)) in outs.iter_mut().zip(bias).enumerate() {
         let at = k * B;
         let mut acc = [0.0f32; B];
-        for (xj, wj) in xs.iter().zip(&ws).take(n) {
+        for (xj, wj) in xs.iter().zip(ws) {
             if let Some(wb) = wj.get(at..).and_then(|r| r.first_chunk::<B>()) {
-                for (a, wv) in acc.iter_mut().zip(wb) {
+                // One block load (a `vldm` on a Cortex-M4F), then B
+                // multiply-accumulates.
+                let wv = *wb;
+                for (a, wv) in acc.iter_mut().zip(wv) {
                     *a += xj * wv;
                 }
             }
