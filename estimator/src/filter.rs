@@ -461,10 +461,11 @@ impl<'m> Estimator<'m> {
         let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
         for (i, (prow, si_row)) in p.iter_mut().zip(&si).enumerate() {
             let ri = spec.r.get(i).copied().unwrap_or(0.0);
-            for (j, (pij, (sij, rj))) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)).enumerate()
-            {
-                let diag = if i == j { ri } else { 0.0 };
-                *pij = diag - (ri * rj) * sij;
+            for (pij, (sij, rj)) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)) {
+                *pij = -((ri * rj) * sij);
+            }
+            if let Some(d) = prow.get_mut(i) {
+                *d += ri;
             }
             for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
                 let m = mta.get(i).copied().unwrap_or(0.0);
@@ -519,10 +520,8 @@ impl<'m> Estimator<'m> {
 
         // One pass without early exit (vectorises): is anything NaN or
         // infinite?
-        let finite = g
-            .iter()
-            .chain(p.iter().flatten())
-            .fold(true, |ok, v| ok & v.is_finite());
+        let finite_row = |r: &[f32; AUG_DIM]| r.iter().fold(true, |ok, v| ok & v.is_finite());
+        let finite = p.iter().fold(finite_row(&g), |ok, r| ok & finite_row(r));
         if finite {
             Ok((g, p))
         } else {

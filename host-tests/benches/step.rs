@@ -10,7 +10,10 @@
 //!   forward pass (flex CPU backend, a batch of one).
 //! - `peer/f64_filter`: an f64 Kalman filter on dynamic nalgebra matrices
 //!   ([`host_tests::reference::Reference`]).
-//! - `peer/step`: the two together, the straightforward host pipeline.
+//! - `peer/adskalman_filter`: the same filter through the `adskalman`
+//!   crate (f32, static sizes, Joseph form).
+//! - `peer/step`: burn's encoder and the f64 filter together, the
+//!   straightforward host pipeline.
 //!
 //! `cargo bench -p host-tests --bench step` prints each time and, at the
 //! end, the ratios of the peers to the estimator.
@@ -95,6 +98,18 @@ fn bench(c: &mut Criterion) {
             black_box(r.g[16])
         })
     });
+    let ads = trainer::reference::ads::Models::new(&model);
+    g.bench_function("adskalman_filter", |b| {
+        b.iter(|| {
+            let mut state = ads.start(&model, &zs[0]);
+            for z in &zs[1..] {
+                if let Some(next) = ads.step(&state, black_box(z)) {
+                    state = next;
+                }
+            }
+            black_box(state)
+        })
+    });
     g.bench_function("step", |b| {
         b.iter(|| {
             let z0 = burn_encode(&model.normalise(&xs[0]));
@@ -132,6 +147,11 @@ fn ratios() {
         ("step", ("estimator", "step"), ("peer", "step")),
         ("encoder", ("estimator", "encode"), ("peer", "burn_encode")),
         ("filter", ("estimator", "filter"), ("peer", "f64_filter")),
+        (
+            "filter (ads)",
+            ("estimator", "filter"),
+            ("peer", "adskalman_filter"),
+        ),
     ];
     println!("\nper step (ns)        estimator        peer   peer/estimator");
     for (what, ours, peer) in pairs {

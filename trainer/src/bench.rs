@@ -13,7 +13,10 @@
 //!   batch of one;
 //! - peer `f64_filter`: [`Reference`], the textbook filter on dynamic f64
 //!   matrices (nalgebra `DMatrix`);
-//! - peer `step`: the two together, the straightforward host pipeline.
+//! - peer `adskalman_filter`: the same filter through the `adskalman`
+//!   crate (f32, static nalgebra sizes, its default Joseph-form update);
+//! - peer `step`: burn's encoder and the f64 filter together, the
+//!   straightforward host pipeline.
 //!
 //! For figures with confidence intervals use the criterion bench,
 //! `cargo bench -p host-tests --bench step`, which measures the same
@@ -64,6 +67,10 @@ pub struct BenchReport {
     pub peer_burn_encoder_ns: f64,
     /// The f64 `DMatrix` filter, ns per step.
     pub peer_f64_filter_ns: f64,
+    /// The `adskalman` filter (f32, static sizes), ns per step.
+    pub peer_adskalman_filter_ns: f64,
+    /// `peer_adskalman_filter_ns / filter_ns`.
+    pub adskalman_speedup: f64,
     /// burn's encoder and the f64 filter together, ns per step.
     pub peer_step_ns: f64,
     /// `peer_step_ns / step_ns`.
@@ -151,6 +158,16 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
             black_box(r.step(black_box(z)));
         }
     });
+    let ads = crate::reference::ads::Models::new(model);
+    let (peer_adskalman_filter_ns, _) = per_step(budget, n, || {
+        let mut state = ads.start(model, &first);
+        for z in zs.iter().skip(1) {
+            if let Some(next) = ads.step(&state, black_box(z)) {
+                state = next;
+            }
+        }
+        black_box(state);
+    });
     let (peer_step_ns, _) = per_step(budget, n, || {
         let Some(x0) = xs.first() else { return };
         let mut r = Reference::new(model, &burn_encode(&model.normalise(x0)));
@@ -164,6 +181,8 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         filter_ns,
         peer_burn_encoder_ns,
         peer_f64_filter_ns,
+        peer_adskalman_filter_ns,
+        adskalman_speedup: peer_adskalman_filter_ns / filter_ns,
         peer_step_ns,
         step_speedup: peer_step_ns / step_ns,
         encoder_speedup: peer_burn_encoder_ns / encoder_ns,

@@ -64,3 +64,111 @@ impl Reference {
         true
     }
 }
+
+/// The same filter through an existing Kalman crate, `adskalman` (f32,
+/// static sizes, its default Joseph-form update): the peer a user would
+/// reach for, and a second oracle for the host tests.
+pub mod ads {
+    use adskalman::{
+        KalmanFilterNoControl, ObservationModel, StateAndCovariance, TransitionModelLinearNoControl,
+    };
+    use estimator::{AUG_DIM, LATENT_DIM, Model};
+    use nalgebra::{SMatrix, SVector, U16, U18};
+
+    type Square = SMatrix<f32, AUG_DIM, AUG_DIM>;
+
+    /// `F` and `Q`.
+    pub struct Transition {
+        f: Square,
+        ft: Square,
+        q: Square,
+    }
+
+    impl TransitionModelLinearNoControl<f32, U18> for Transition {
+        fn F(&self) -> &Square {
+            &self.f
+        }
+        fn FT(&self) -> &Square {
+            &self.ft
+        }
+        fn Q(&self) -> &Square {
+            &self.q
+        }
+    }
+
+    /// `H = [I 0]` and `R`.
+    pub struct Observation {
+        h: SMatrix<f32, LATENT_DIM, AUG_DIM>,
+        ht: SMatrix<f32, AUG_DIM, LATENT_DIM>,
+        r: SMatrix<f32, LATENT_DIM, LATENT_DIM>,
+    }
+
+    impl ObservationModel<f32, U18, U16> for Observation {
+        fn H(&self) -> &SMatrix<f32, LATENT_DIM, AUG_DIM> {
+            &self.h
+        }
+        fn HT(&self) -> &SMatrix<f32, AUG_DIM, LATENT_DIM> {
+            &self.ht
+        }
+        fn R(&self) -> &SMatrix<f32, LATENT_DIM, LATENT_DIM> {
+            &self.r
+        }
+    }
+
+    /// The models, built once per blob.
+    pub struct Models {
+        /// `F`, `Q`.
+        pub transition: Transition,
+        /// `H`, `R`.
+        pub observation: Observation,
+    }
+
+    impl Models {
+        /// From the blob's `F`, `Q`, `R`.
+        pub fn new(m: &Model<'_>) -> Self {
+            let spec = &m.blob().body.filter;
+            let f = Square::from_fn(|i, j| m.f(i, j));
+            let q = Square::from_diagonal(&SVector::<f32, AUG_DIM>::from_column_slice(&spec.q));
+            let h =
+                SMatrix::<f32, LATENT_DIM, AUG_DIM>::from_fn(|i, j| f32::from(u8::from(i == j)));
+            let r =
+                SMatrix::<f32, LATENT_DIM, LATENT_DIM>::from_diagonal(
+                    &SVector::<f32, LATENT_DIM>::from_column_slice(&spec.r),
+                );
+            Models {
+                transition: Transition {
+                    f,
+                    ft: f.transpose(),
+                    q,
+                },
+                observation: Observation {
+                    h,
+                    ht: h.transpose(),
+                    r,
+                },
+            }
+        }
+
+        /// The filter's state after the first measurement: `y = z0` and the
+        /// blob's prior.
+        pub fn start(&self, m: &Model<'_>, z0: &[f32; LATENT_DIM]) -> StateAndCovariance<f32, U18> {
+            let spec = &m.blob().body.filter;
+            let g =
+                SVector::<f32, AUG_DIM>::from_iterator(z0.iter().chain(&spec.prior_mean).copied());
+            let p =
+                Square::from_diagonal(&SVector::<f32, AUG_DIM>::from_column_slice(&spec.prior_var));
+            StateAndCovariance::new(g, p)
+        }
+
+        /// One predict and update; `None` when adskalman refuses.
+        pub fn step(
+            &self,
+            prev: &StateAndCovariance<f32, U18>,
+            z: &[f32; LATENT_DIM],
+        ) -> Option<StateAndCovariance<f32, U18>> {
+            let kf = KalmanFilterNoControl::new(&self.transition, &self.observation);
+            kf.step(prev, &SVector::<f32, LATENT_DIM>::from_column_slice(z))
+                .ok()
+        }
+    }
+}

@@ -510,6 +510,7 @@ fn bench_reports_ours_and_the_peers_per_step() {
         "peer_burn_encoder_ns",
         "peer_f64_filter_ns",
         "peer_step_ns",
+        "peer_adskalman_filter_ns",
     ] {
         let ns = v[k]
             .as_f64()
