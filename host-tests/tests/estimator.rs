@@ -219,7 +219,7 @@ fn a_blob_is_read_in_place_only_at_an_aligned_address() {
         // The arena lies at a multiple of 4 from the blob's start, so the
         // blob reads where it starts at a multiple of 4, and is refused
         // (not copied, not misread) elsewhere.
-        if at % 4 == 0 {
+        if at.is_multiple_of(4) {
             assert!(got.is_ok(), "offset {o}: {:?}", got.err());
         } else {
             assert_eq!(got.unwrap_err(), Error::BlobMisaligned, "offset {o}");
