@@ -220,6 +220,12 @@ pub fn table(r: &BenchReport) -> String {
         "f64 DMatrix filter",
         r.peer_f64_filter_ns,
     );
+    s += &row(
+        "filter",
+        r.filter_ns,
+        "adskalman (f32)",
+        r.peer_adskalman_filter_ns,
+    );
     s
 }
 
