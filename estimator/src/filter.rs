@@ -11,8 +11,17 @@
 //! - `P`: the state covariance.
 //!
 //! Predict: `g = F g`, `P = F P F^T + Q`. Update: `S = H P H^T + R`,
-//! `K = P H^T S^-1` (by Cholesky), `g += K (z - H g)`, and the Joseph form
-//! `P = (I - K H) P (I - K H)^T + K R K^T`, then `P = (P + P^T) / 2`.
+//! `K = P H^T S^-1`, `g += K (z - H g)`, `P = (I - K H) P`: the textbook
+//! filter, which `trainer::reference` runs in f64 as the tests' oracle.
+//!
+//! How this crate computes it (same numbers, less work; see
+//! `Estimator::predict_update`): `S = L D L^T` (no square roots) and
+//! `S^-1 = L^-T D^-1 L^-1`. The gain is never formed: `K_y = I - R S^-1`
+//! and `K_p = M^T` with `M = S^-1 P_yp`. So `y = z - R S^-1 nu`,
+//! `p += M^T nu` (`nu = z - y` the innovation) and `P_yy = R - R S^-1 R`.
+//! `P_yp` and `P_pp` take Joseph's form for those blocks,
+//! `(I - K H) P (I - K H)^T + K R K^T`, which an error in `S^-1` changes
+//! only to second order.
 //!
 //! The correction to the parameters at a step is the `p` part of
 //! `K (z - H g)`. After `burn_in` updates, the population standard
