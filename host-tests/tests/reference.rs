@@ -1,49 +1,85 @@
-//! The estimator's f32 filter against the independent f64 reference in
-//! `host_tests::reference`.
+//! The estimator's f32 filter against two oracles over every step of the
+//! protocol's 50 test rollouts: the independent f64 reference in
+//! `host_tests::reference`, and the same filter through the `adskalman`
+//! crate.
 
-use estimator::{Estimator, LATENT_DIM, Model};
+use estimator::{Estimator, LATENT_DIM, Latent, Model};
 use host_tests::reference::Reference;
 use host_tests::shipped_blob;
 use trainer::data::{TEST_LENGTHS, test_set};
 
-#[test]
-fn filter_matches_an_f64_reference_over_whole_test_rollouts() {
-    let bytes = shipped_blob();
-    let m = Model::from_bytes(&bytes).unwrap();
+/// An oracle filter: started on the first encoded measurement, stepped on
+/// each later one, reporting the length's estimate and std.
+trait Oracle {
+    fn step(&mut self, z: &Latent);
+    fn length(&self) -> (f64, f64);
+}
+
+impl Oracle for Reference {
+    fn step(&mut self, z: &Latent) {
+        assert!(Reference::step(self, z), "reference: S singular");
+    }
+    fn length(&self) -> (f64, f64) {
+        (self.g[LATENT_DIM], self.p[(LATENT_DIM, LATENT_DIM)].sqrt())
+    }
+}
+
+struct Ads<'m> {
+    models: &'m trainer::reference::ads::Models,
+    state: trainer::reference::ads::State,
+}
+
+impl Oracle for Ads<'_> {
+    fn step(&mut self, z: &Latent) {
+        self.state = self
+            .models
+            .step(&self.state, z)
+            .expect("adskalman refused a step");
+    }
+    fn length(&self) -> (f64, f64) {
+        (
+            self.state.state()[LATENT_DIM] as f64,
+            (self.state.covariance()[(LATENT_DIM, LATENT_DIM)] as f64).sqrt(),
+        )
+    }
+}
+
+/// Runs the estimator and `start`'s oracle side by side and asserts the
+/// stated tolerances at every step; returns the largest length difference.
+fn compare<'a, O: Oracle + 'a>(m: &'a Model<'a>, start: impl Fn(&Latent) -> O) -> f64 {
     let ds = test_set(0, &TEST_LENGTHS, &[]);
     let mut worst = 0.0f64;
     for r in &ds.rollouts {
         let xs: Vec<[f32; 2]> = r.xs.iter().map(|x| [x[0] as f32, x[1] as f32]).collect();
-        let mut est = Estimator::new(&m);
+        let mut est = Estimator::new(m);
         est.step(&xs[0]).unwrap();
-        let mut reference = Reference::new(&m, &m.encode(&m.normalise(&xs[0])));
+        let mut oracle = start(&m.encode(&m.normalise(&xs[0])));
         for x in &xs[1..] {
             let out = est.step(x).unwrap();
-            assert!(
-                reference.step(&m.encode(&m.normalise(x))),
-                "reference: S singular"
-            );
-            let l_ref = reference.g[LATENT_DIM];
-            let std_ref = reference.p[(LATENT_DIM, LATENT_DIM)].sqrt();
-            let err = (out.params[0] as f64 - l_ref).abs();
+            oracle.step(&m.encode(&m.normalise(x)));
+            let (l, std) = oracle.length();
+            let err = (out.params[0] as f64 - l).abs();
             worst = worst.max(err);
-            // f32 against f64 over 127 steps of an 18-dim filter: 1e-3 m on a
-            // length of metres (the estimate's own std is ~1e-2 m or more),
-            // and 2% of the reported std.
+            // f32 against another filter over 127 steps of an 18-dim filter:
+            // 1e-3 m on a length of metres (the estimate's own std is ~1e-2 m
+            // or more), and 2% of the reported std.
+            assert!(err < 1e-3, "rollout {}: L {} vs {l}", r.id, out.params[0]);
             assert!(
-                err < 1e-3,
-                "rollout {}: L {} vs reference {l_ref}",
-                r.id,
-                out.params[0]
-            );
-            assert!(
-                ((out.param_std[0] as f64) - std_ref).abs() < 0.02 * std_ref + 1e-4,
-                "rollout {}: std {} vs {std_ref}",
+                ((out.param_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
+                "rollout {}: std {} vs {std}",
                 r.id,
                 out.param_std[0]
             );
         }
     }
+    worst
+}
+
+#[test]
+fn filter_matches_an_f64_reference_over_whole_test_rollouts() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let worst = compare(&m, |z0| Reference::new(&m, z0));
     eprintln!("largest |L - L_ref| over all steps of all 50 rollouts: {worst:.2e}");
 }
 
@@ -53,37 +89,10 @@ fn filter_matches_adskalman_over_whole_test_rollouts() {
     // crate (f32, textbook gain, Joseph form).
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
-    let ads = trainer::reference::ads::Models::new(&m);
-    let ds = test_set(0, &TEST_LENGTHS, &[]);
-    let mut worst = 0.0f32;
-    for r in &ds.rollouts {
-        let xs: Vec<[f32; 2]> = r.xs.iter().map(|x| [x[0] as f32, x[1] as f32]).collect();
-        let mut est = Estimator::new(&m);
-        est.step(&xs[0]).unwrap();
-        let mut state = ads.start(&m, &m.encode(&m.normalise(&xs[0])));
-        for x in &xs[1..] {
-            let out = est.step(x).unwrap();
-            state = ads.step(&state, &m.encode(&m.normalise(x))).unwrap();
-            let l = state.state()[LATENT_DIM];
-            let std = state.covariance()[(LATENT_DIM, LATENT_DIM)].sqrt();
-            let err = (out.params[0] - l).abs();
-            worst = worst.max(err);
-            // Two f32 filters that round differently, over 127 steps: the
-            // same bounds as against the f64 reference (1e-3 m on a length
-            // of metres; 2% of the std).
-            assert!(
-                err < 1e-3,
-                "rollout {}: L {} vs adskalman {l}",
-                r.id,
-                out.params[0]
-            );
-            assert!(
-                (out.param_std[0] - std).abs() < 0.02 * std + 1e-4,
-                "rollout {}: std {} vs {std}",
-                r.id,
-                out.param_std[0]
-            );
-        }
-    }
+    let models = trainer::reference::ads::Models::new(&m);
+    let worst = compare(&m, |z0| Ads {
+        models: &models,
+        state: models.start(&m, z0),
+    });
     eprintln!("largest |L - L_adskalman| over all steps of all 50 rollouts: {worst:.2e}");
 }

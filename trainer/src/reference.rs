@@ -76,6 +76,8 @@ pub mod ads {
     use nalgebra::{SMatrix, SVector, U16, U18};
 
     type Square = SMatrix<f32, AUG_DIM, AUG_DIM>;
+    /// adskalman's mean and covariance over `[y; p]`.
+    pub type State = StateAndCovariance<f32, U18>;
 
     /// `F` and `Q`.
     pub struct Transition {
@@ -151,7 +153,7 @@ pub mod ads {
 
         /// The filter's state after the first measurement: `y = z0` and the
         /// blob's prior.
-        pub fn start(&self, m: &Model<'_>, z0: &[f32; LATENT_DIM]) -> StateAndCovariance<f32, U18> {
+        pub fn start(&self, m: &Model<'_>, z0: &[f32; LATENT_DIM]) -> State {
             let spec = &m.blob().body.filter;
             let g =
                 SVector::<f32, AUG_DIM>::from_iterator(z0.iter().chain(&spec.prior_mean).copied());
@@ -161,11 +163,7 @@ pub mod ads {
         }
 
         /// One predict and update; `None` when adskalman refuses.
-        pub fn step(
-            &self,
-            prev: &StateAndCovariance<f32, U18>,
-            z: &[f32; LATENT_DIM],
-        ) -> Option<StateAndCovariance<f32, U18>> {
+        pub fn step(&self, prev: &State, z: &[f32; LATENT_DIM]) -> Option<State> {
             let kf = KalmanFilterNoControl::new(&self.transition, &self.observation);
             kf.step(prev, &SVector::<f32, LATENT_DIM>::from_column_slice(z))
                 .ok()
