@@ -20,16 +20,31 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
-//! # The arena (format version 2)
+//! # The arena (format version 3)
 //! In order, with the sizes of [`ENCODER_SHAPES`] and [`DECODER_SHAPES`]:
 //! for each encoder layer then each decoder layer, its weight `W` then its
 //! bias `b`; then `F` ([`AUG_DIM`] x [`AUG_DIM`], row-major), then `B`
-//! ([`AUG_DIM`] x [`INPUT_DIM`], row-major). A dense layer
+//! ([`AUG_DIM`] x [`INPUT_DIM`], row-major); then the gain schedule of
+//! [`FilterSpec::schedule_steps`] updates (see below). A dense layer
 //! `out = W^T in + b` stores `W` input-major: `d_in` rows of `d_out`
 //! weights (burn's `Linear::weight` layout, the transpose of PyTorch's).
 //! Each input's weights are contiguous, so a layer is a sum of scaled rows
 //! and an input that is zero (half of them after a ReLU) is skipped.
-//! [`layer_span`], [`F_AT`], [`B_AT`] and [`ARENA_LEN`] give the offsets.
+//! [`layer_span`], [`F_AT`], [`B_AT`], [`SCHEDULE_AT`] and [`arena_len`]
+//! give the offsets.
+//!
+//! # The gain schedule
+//! The filter's covariance recursion does not depend on the measurements:
+//! from the prior, `F`, `Q` and `R` alone, the gains `K_1, K_2, ...` of the
+//! updates are the same for every trajectory. The exporter runs that
+//! recursion once, in f64, for the first `T =`
+//! [`FilterSpec::schedule_steps`] updates and stores, per update `n`
+//! (`1..=T`), [`SCHEDULE_STEP_LEN`] values: `K_n^T` ([`LATENT_DIM`] rows of
+//! [`AUG_DIM`]: row `k` says how innovation `k` moves `[y; p]`), then the
+//! parameters' standard deviations after the update, `sqrt(diag P_pp)`.
+//! After the `T` steps come the [`AUG_DIM`]^2 values of `P_T` (row-major),
+//! from which the filter carries the recursion on by itself. With `T = 0`
+//! there is no schedule and no `P_T`.
 
 use serde::{Deserialize, Serialize};
 
@@ -38,7 +53,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 2;
+pub const FORMAT_VERSION: u16 = 3;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -162,8 +177,20 @@ const fn mlp_len(shapes: &[(usize, usize); N_LAYERS]) -> usize {
 pub const F_AT: usize = mlp_len(&ENCODER_SHAPES) + mlp_len(&DECODER_SHAPES);
 /// Offset of `B` in the arena, in `f32`s.
 pub const B_AT: usize = F_AT + AUG_DIM * AUG_DIM;
-/// Length of the arena, in `f32`s.
-pub const ARENA_LEN: usize = B_AT + AUG_DIM * INPUT_DIM;
+/// Offset of the gain schedule in the arena, in `f32`s: the length of
+/// the arena without one.
+pub const SCHEDULE_AT: usize = B_AT + AUG_DIM * INPUT_DIM;
+/// Values of one scheduled update: `K^T` then the parameters' standard
+/// deviations.
+pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
+
+/// Length of the arena with a schedule of `steps` updates, in `f32`s: the
+/// weights, `steps` scheduled updates and, when `steps > 0`, `P_T`.
+pub const fn arena_len(steps: u16) -> usize {
+    let steps = steps as usize;
+    let end_cov = if steps > 0 { AUG_DIM * AUG_DIM } else { 0 };
+    SCHEDULE_AT + steps * SCHEDULE_STEP_LEN + end_cov
+}
 
 /// Where layer `k` of `net` lies in the arena, in `f32`s:
 /// `(weight offset, d_in, d_out)`; its bias follows the weight at
@@ -218,6 +245,9 @@ pub struct FilterSpec {
     /// Sigma of the first parameter's corrections above which an estimate
     /// is not trusted (calibrated on training data at export).
     pub sigma_threshold: f32,
+    /// Updates whose gains are precomputed in the arena (see the module's
+    /// "gain schedule"); 0 for none.
+    pub schedule_steps: u16,
 }
 
 impl FilterSpec {
@@ -255,7 +285,7 @@ pub struct Body<'a> {
     /// blob's start (see [`Blob::to_slice`], which chooses them).
     #[serde(borrow)]
     pub pad: &'a [u8],
-    /// The weight arena, [`ARENA_LEN`] values in the module's order.
+    /// The weight arena, [`arena_len`] values in the module's order.
     #[serde(borrow)]
     pub weights: F32s<'a>,
 }
@@ -272,6 +302,27 @@ impl<'a> Body<'a> {
     /// `B`, row-major.
     pub fn b(&self) -> F32s<'a> {
         self.span(B_AT, AUG_DIM * INPUT_DIM)
+    }
+    /// Scheduled update `n` (`1..=schedule_steps`): `K_n^T` ([`LATENT_DIM`]
+    /// rows of [`AUG_DIM`]) and the parameters' standard deviations after
+    /// it. Empty runs for an `n` outside the schedule.
+    pub fn schedule_step(&self, n: usize) -> (F32s<'a>, F32s<'a>) {
+        let steps = usize::from(self.filter.schedule_steps);
+        if n == 0 || n > steps {
+            return (F32s(&[]), F32s(&[]));
+        }
+        let at = SCHEDULE_AT + (n - 1) * SCHEDULE_STEP_LEN;
+        let gain = LATENT_DIM * AUG_DIM;
+        (self.span(at, gain), self.span(at + gain, PARAM_DIM))
+    }
+    /// `P_T` after the last scheduled update, row-major (empty without a
+    /// schedule).
+    pub fn schedule_end_covariance(&self) -> F32s<'a> {
+        let steps = usize::from(self.filter.schedule_steps);
+        if steps == 0 {
+            return F32s(&[]);
+        }
+        self.span(SCHEDULE_AT + steps * SCHEDULE_STEP_LEN, AUG_DIM * AUG_DIM)
     }
     /// Layer `k` of `net`: its input-major weight and its bias.
     pub fn layer(&self, net: Net, k: usize) -> (F32s<'a>, F32s<'a>) {
@@ -357,7 +408,7 @@ impl<'a> Blob<'a> {
         if b.pad.len() > 3 || b.pad.iter().any(|v| *v != 0) {
             return Err(Error::BlobMisaligned);
         }
-        b.weights.check(ARENA_LEN)?;
+        b.weights.check(arena_len(b.filter.schedule_steps))?;
         // The filter treats the parameters as static: their rows of F must
         // be the identity.
         let param_rows_identity =
@@ -373,6 +424,17 @@ impl<'a> Blob<'a> {
             return Err(Error::BlobParamsNotStatic);
         }
         if !b.params.iter().all(|p| finite(&p.train_range)) {
+            return Err(Error::BlobNonFinite);
+        }
+        // The schedule's standard deviations are not negative and its
+        // `P_T` is symmetric with a diagonal that is not negative.
+        let stds_ok = (1..=usize::from(b.filter.schedule_steps))
+            .all(|n| b.schedule_step(n).1.iter().all(|v| v >= 0.0));
+        let pt = b.schedule_end_covariance();
+        let at = |i: usize, j: usize| pt.get(i * AUG_DIM + j);
+        let pt_ok = (0..AUG_DIM)
+            .all(|i| at(i, i).is_none_or(|v| v >= 0.0) && (0..i).all(|j| at(i, j) == at(j, i)));
+        if !(stds_ok && pt_ok) {
             return Err(Error::BlobNonFinite);
         }
         b.filter.check()

@@ -246,32 +246,62 @@ impl Spread {
 }
 
 /// The estimator: a fixed-size filter state over one model.
+///
+/// When the blob carries a gain schedule (its first `T` updates' gains,
+/// computed at export: see [`crate::blob`]), updates `1..=T` apply those
+/// gains and skip the covariance recursion: the same filter, for about a
+/// twentieth of the arithmetic. From update `T + 1` on, the recursion runs
+/// here from the blob's `P_T`. [`Estimator::without_schedule`] runs the
+/// recursion at every update instead.
 #[derive(Debug, Clone)]
 pub struct Estimator<'m> {
     model: &'m Model<'m>,
     g: Aug,
     p: Cov,
+    param_std: [f32; PARAM_DIM],
     t: u32,
     started: bool,
+    scheduled: bool,
     spread: Spread,
 }
 
 impl<'m> Estimator<'m> {
-    /// A filter that has seen nothing yet.
+    /// A filter that has seen nothing yet; it uses the blob's gain schedule
+    /// if there is one.
     pub fn new(model: &'m Model<'m>) -> Self {
         Estimator {
             model,
             g: [0.0; AUG_DIM],
             p: [[0.0; AUG_DIM]; AUG_DIM],
+            param_std: [0.0; PARAM_DIM],
             t: 0,
             started: false,
+            scheduled: true,
             spread: Spread::default(),
         }
     }
 
-    /// Forgets everything seen.
+    /// A filter that ignores the blob's gain schedule and runs the
+    /// covariance recursion at every update (so [`Estimator::covariance`]
+    /// is always known).
+    pub fn without_schedule(model: &'m Model<'m>) -> Self {
+        Estimator {
+            scheduled: false,
+            ..Estimator::new(model)
+        }
+    }
+
+    /// Forgets everything seen (and keeps whether the schedule is used).
     pub fn reset(&mut self) {
-        *self = Estimator::new(self.model);
+        *self = Estimator {
+            scheduled: self.scheduled,
+            ..Estimator::new(self.model)
+        };
+    }
+
+    /// Whether the next update applies a precomputed gain.
+    pub fn on_schedule(&self) -> bool {
+        self.scheduled && self.started && self.t < self.model.schedule_steps()
     }
 
     /// The mean `[y; p]`.
@@ -279,9 +309,13 @@ impl<'m> Estimator<'m> {
         AugVector::from(self.g)
     }
 
-    /// The covariance `P`.
-    pub fn covariance(&self) -> AugMatrix {
-        AugMatrix::from_data(ArrayStorage(self.p))
+    /// The covariance `P` after the last update, or `None` after a
+    /// scheduled update before the last one (the schedule stores the
+    /// gains, not every `P`; after the last it stores `P_T`).
+    pub fn covariance(&self) -> Option<AugMatrix> {
+        let scheduled_inside =
+            self.scheduled && self.started && self.t >= 1 && self.t < self.model.schedule_steps();
+        (!scheduled_inside).then(|| AugMatrix::from_data(ArrayStorage(self.p)))
     }
 
     /// `F` from the model.
@@ -328,12 +362,27 @@ impl<'m> Estimator<'m> {
             }
             self.g = g;
             self.p = p;
+            self.param_std = diag_std(&p);
             self.t = 0;
             self.started = true;
             self.spread = Spread::default();
             return Ok(self.output([0.0; PARAM_DIM]));
         }
-        let (g, p) = self.predict_update(z)?;
+        let t = self.t.saturating_add(1);
+        let scheduled = self.scheduled.then(|| self.model.scheduled_gain(t));
+        let (g, p, param_std) = if let Some(Some((kt, std))) = scheduled {
+            let g = self.scheduled_update(z, kt)?;
+            // After the last scheduled update the recursion goes on from
+            // the blob's P_T; before it, P is not tracked.
+            let p = match self.model.schedule_end_covariance() {
+                Some(pt) if t == self.model.schedule_steps() => *pt,
+                _ => self.p,
+            };
+            (g, p, *std)
+        } else {
+            let (g, p) = self.predict_update(z)?;
+            (g, p, diag_std(&p))
+        };
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction.iter_mut().zip(
             g.iter()
@@ -342,14 +391,40 @@ impl<'m> Estimator<'m> {
         ) {
             *c = new - old;
         }
-        let t = self.t.saturating_add(1);
         self.g = g;
         self.p = p;
+        self.param_std = param_std;
         self.t = t;
         if t >= u32::from(spec.burn_in) {
             self.spread.push(&correction);
         }
         Ok(self.output(correction))
+    }
+
+    /// One update with a precomputed gain `K` (given as `K^T`, row `k` for
+    /// innovation `k`): `g' = F g`, `nu = z - y'`, `g = g' + K nu`. Leaves
+    /// `self` alone.
+    fn scheduled_update(
+        &self,
+        z: &Latent,
+        kt: &[[f32; AUG_DIM]; LATENT_DIM],
+    ) -> Result<Aug, Error> {
+        let ct = self.model.koopman_columns();
+        let y = combo(self.g.iter().copied().zip(ct));
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        let dg = combo(nu.iter().copied().zip(kt));
+        let mut g = self.g;
+        for ((gi, pred), d) in g.iter_mut().zip(y.iter().chain(tail(&self.g))).zip(&dg) {
+            *gi = pred + d;
+        }
+        if g.iter().fold(true, |ok, v| ok & v.is_finite()) {
+            Ok(g)
+        } else {
+            Err(Error::FilterNonFinite)
+        }
     }
 
     /// Predict and update without touching `self`, using the structure:
@@ -540,17 +615,10 @@ impl<'m> Estimator<'m> {
 
     fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
         let mut params = [0.0; PARAM_DIM];
-        let mut param_std = [0.0; PARAM_DIM];
-        for (k, (m, s)) in params.iter_mut().zip(param_std.iter_mut()).enumerate() {
-            *m = self.g.get(LATENT_DIM + k).copied().unwrap_or(0.0);
-            let v = self
-                .p
-                .get(LATENT_DIM + k)
-                .and_then(|row| row.get(LATENT_DIM + k))
-                .copied()
-                .unwrap_or(0.0);
-            *s = libm::sqrtf(v.max(0.0));
+        for (m, g) in params.iter_mut().zip(tail(&self.g)) {
+            *m = *g;
         }
+        let param_std = self.param_std;
         let sigma = self.spread.sigma();
         let trust = if self.spread.n < 2 {
             Trust::Pending
@@ -570,6 +638,20 @@ impl<'m> Estimator<'m> {
             trust,
         }
     }
+}
+
+/// `sqrt(diag P_pp)`.
+fn diag_std(p: &Cov) -> [f32; PARAM_DIM] {
+    let mut s = [0.0; PARAM_DIM];
+    for (k, s) in s.iter_mut().enumerate() {
+        let v = p
+            .get(LATENT_DIM + k)
+            .and_then(|row| row.get(LATENT_DIM + k))
+            .copied()
+            .unwrap_or(0.0);
+        *s = libm::sqrtf(v.max(0.0));
+    }
+    s
 }
 
 /// Runs the estimator over `xs` (raw states) and returns the output after

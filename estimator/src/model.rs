@@ -1,7 +1,7 @@
 //! The model read from a blob: normalisation, encoder `phi`, decoder
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
-use crate::blob::{Activation, Blob, Net, layer_span};
+use crate::blob::{Activation, Blob, Net, SCHEDULE_AT, SCHEDULE_STEP_LEN, layer_span};
 use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
 
 #[cfg(target_endian = "big")]
@@ -76,6 +76,7 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
 #[derive(Debug, Clone, Copy)]
 pub struct Model<'a> {
     blob: Blob<'a>,
+    arena: &'a [f32],
     encoder: Mlp<'a, STATE_DIM, HIDDEN_DIM, LATENT_DIM>,
     decoder: Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
     c: KoopmanRows,
@@ -165,6 +166,7 @@ impl<'a> Model<'a> {
         }
         Ok(Model {
             blob,
+            arena,
             encoder,
             decoder,
             c,
@@ -182,6 +184,42 @@ impl<'a> Model<'a> {
     #[inline]
     pub fn koopman_columns(&self) -> &KoopmanColumns {
         &self.ct
+    }
+
+    /// Updates whose gains the blob precomputes (`T`, see the blob's
+    /// "gain schedule").
+    #[inline]
+    pub fn schedule_steps(&self) -> u32 {
+        u32::from(self.blob.body.filter.schedule_steps)
+    }
+
+    /// Scheduled update `n` (`1..=T`): `K_n^T` (row `k`: how innovation `k`
+    /// moves `[y; p]`) and the parameters' standard deviations after it,
+    /// read in place. `None` outside the schedule.
+    #[inline]
+    pub fn scheduled_gain(
+        &self,
+        n: u32,
+    ) -> Option<(&'a [[f32; AUG_DIM]; LATENT_DIM], &'a [f32; PARAM_DIM])> {
+        if n == 0 || n > self.schedule_steps() {
+            return None;
+        }
+        let at = SCHEDULE_AT + (n as usize - 1) * SCHEDULE_STEP_LEN;
+        let kt = rows::<LATENT_DIM, AUG_DIM>(self.arena, at).ok()?;
+        let std = rows::<1, PARAM_DIM>(self.arena, at + LATENT_DIM * AUG_DIM)
+            .ok()
+            .map(|[r]| r)?;
+        Some((kt, std))
+    }
+
+    /// `P_T`, the covariance after the last scheduled update; `None`
+    /// without a schedule.
+    pub fn schedule_end_covariance(&self) -> Option<&'a [[f32; AUG_DIM]; AUG_DIM]> {
+        let t = self.schedule_steps() as usize;
+        if t == 0 {
+            return None;
+        }
+        rows(self.arena, SCHEDULE_AT + t * SCHEDULE_STEP_LEN).ok()
     }
 
     /// The decoded blob.

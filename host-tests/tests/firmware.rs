@@ -167,7 +167,7 @@ fn firmware_in_qemu_matches_the_host() {
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(lines.last().copied(), Some("done"), "{stdout}");
     assert!(
-        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 5,
+        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 10,
         "{stdout}"
     );
 
@@ -183,7 +183,6 @@ fn firmware_in_qemu_matches_the_host() {
     // Host outputs for the same f32 measurements.
     let bytes = shipped_blob();
     let model = Model::from_bytes(&bytes).unwrap();
-    let mut est = Estimator::new(&model);
     let rollouts = rollouts_f32(&firmware_dir().join("rollouts.csv"));
     let mut steps = lines.iter().filter(|l| l.starts_with("step "));
     // Tolerance: the same f32 operations in the same order on both sides
@@ -195,22 +194,28 @@ fn firmware_in_qemu_matches_the_host() {
     let mut worst: f32 = 0.0;
     let mut compared = 0;
     for (id, xs) in &rollouts {
-        est.reset();
-        for x in xs {
-            let h = est.step(x).unwrap();
-            let line = steps.next().expect("fewer step lines than measurements");
-            let w: Vec<&str> = line.split_whitespace().collect();
-            assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
-            assert_eq!(w[2].parse::<u32>().unwrap(), h.t, "{line}");
-            let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
-            for (hex, hv) in w[3..9].iter().zip(host_vals) {
-                let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
-                let d = (fv - hv).abs();
-                assert!(d <= tol(*hv), "{line}: firmware {fv} host {hv}");
-                worst = worst.max(d);
-                compared += 1;
+        // The firmware's order: on the gain schedule, then without it.
+        for (mode, mut est) in [
+            ("scheduled", Estimator::new(&model)),
+            ("recursive", Estimator::without_schedule(&model)),
+        ] {
+            for x in xs {
+                let h = est.step(x).unwrap();
+                let line = steps.next().expect("fewer step lines than measurements");
+                let w: Vec<&str> = line.split_whitespace().collect();
+                assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
+                assert_eq!(w[2], mode, "{line}");
+                assert_eq!(w[3].parse::<u32>().unwrap(), h.t, "{line}");
+                let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
+                for (hex, hv) in w[4..10].iter().zip(host_vals) {
+                    let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+                    let d = (fv - hv).abs();
+                    assert!(d <= tol(*hv), "{line}: firmware {fv} host {hv}");
+                    worst = worst.max(d);
+                    compared += 1;
+                }
+                assert_eq!(w[10], trust_word(h.trust), "{line}");
             }
-            assert_eq!(w[9], trust_word(h.trust), "{line}");
         }
     }
     assert!(steps.next().is_none(), "more step lines than measurements");

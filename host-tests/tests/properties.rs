@@ -46,7 +46,8 @@ proptest! {
         let _ = Model::from_bytes(&b);
     }
 
-    /// Over any sequence of measurements, finite or not, huge or not: a
+    /// Over any sequence of measurements, finite or not, huge or not, on
+    /// the blob's gain schedule and past it (63 updates) or without it: a
     /// refused one leaves the state exactly as it was, an accepted one
     /// keeps P symmetric with a positive definite 17x17 block (the
     /// undeclared second parameter has zero variance) and finite outputs.
@@ -57,17 +58,24 @@ proptest! {
                 8 => (-4.0f32..4.0, -8.0f32..8.0).prop_map(|(a, b)| [a, b]),
                 1 => (any::<f32>(), any::<f32>()).prop_map(|(a, b)| [a, b]),
             ],
-            1..40,
-        )
+            1..80,
+        ),
+        scheduled in any::<bool>(),
     ) {
         let m = Model::from_bytes(blob()).unwrap();
-        let mut est = Estimator::new(&m);
+        let mut est = if scheduled { Estimator::new(&m) } else { Estimator::without_schedule(&m) };
         for x in &xs {
             let before = (est.mean(), est.covariance());
             match est.step(x) {
                 Ok(out) => {
                     prop_assert!(out.params.iter().chain(&out.param_std).all(|v| v.is_finite()));
-                    let p = est.covariance();
+                    prop_assert!(out.param_std.iter().all(|v| *v >= 0.0));
+                    // On the gain schedule P is not tracked (the exporter
+                    // checked it); everywhere else it is.
+                    let Some(p) = est.covariance() else {
+                        prop_assert!(scheduled && est.on_schedule());
+                        continue;
+                    };
                     prop_assert_eq!(p, p.transpose());
                     let block = p.fixed_view::<17, 17>(0, 0).into_owned();
                     prop_assert!(block.cholesky().is_some());

@@ -44,32 +44,43 @@ impl Oracle for Ads<'_> {
     }
 }
 
-/// Runs the estimator and `start`'s oracle side by side and asserts the
-/// stated tolerances at every step; returns the largest length difference.
+/// Runs the estimator (on the blob's gain schedule for updates 1..=63,
+/// then by its own recursion; and without the schedule) and `start`'s
+/// oracle side by side, and asserts the stated tolerances at every step;
+/// returns the largest length difference.
 fn compare<'a, O: Oracle + 'a>(m: &'a Model<'a>, start: impl Fn(&Latent) -> O) -> f64 {
     let ds = test_set(0, &TEST_LENGTHS, &[]);
     let mut worst = 0.0f64;
     for r in &ds.rollouts {
         let xs: Vec<[f32; 2]> = r.xs.iter().map(|x| [x[0] as f32, x[1] as f32]).collect();
-        let mut est = Estimator::new(m);
-        est.step(&xs[0]).unwrap();
+        let mut ests = [Estimator::new(m), Estimator::without_schedule(m)];
+        for est in &mut ests {
+            est.step(&xs[0]).unwrap();
+        }
         let mut oracle = start(&m.encode(&m.normalise(&xs[0])));
-        for x in &xs[1..] {
-            let out = est.step(x).unwrap();
+        for (t, x) in xs.iter().enumerate().skip(1) {
             oracle.step(&m.encode(&m.normalise(x)));
             let (l, std) = oracle.length();
-            let err = (out.params[0] as f64 - l).abs();
-            worst = worst.max(err);
-            // f32 against another filter over 127 steps of an 18-dim filter:
-            // 1e-3 m on a length of metres (the estimate's own std is ~1e-2 m
-            // or more), and 2% of the reported std.
-            assert!(err < 1e-3, "rollout {}: L {} vs {l}", r.id, out.params[0]);
-            assert!(
-                ((out.param_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
-                "rollout {}: std {} vs {std}",
-                r.id,
-                out.param_std[0]
-            );
+            for (mode, est) in ests.iter_mut().enumerate() {
+                let out = est.step(x).unwrap();
+                let err = (out.params[0] as f64 - l).abs();
+                worst = worst.max(err);
+                // f32 against another filter over 127 steps of an 18-dim
+                // filter: 1e-3 m on a length of metres (the estimate's own
+                // std is ~1e-2 m or more), and 2% of the reported std.
+                assert!(
+                    err < 1e-3,
+                    "rollout {} step {t} mode {mode}: L {} vs {l}",
+                    r.id,
+                    out.params[0]
+                );
+                assert!(
+                    ((out.param_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
+                    "rollout {} step {t} mode {mode}: std {} vs {std}",
+                    r.id,
+                    out.param_std[0]
+                );
+            }
         }
     }
     worst

@@ -11,8 +11,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use burn::nn::Linear;
 use burn::tensor::{Tensor, TensorData};
-use estimator::blob::{ARENA_LEN, Blob, Body, F32s, FilterSpec, Header, ParamSpec};
+use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, ParamSpec, SCHEDULE_AT};
 use estimator::{AUG_DIM, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
+use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{ModelKind, TrainConfig};
@@ -62,9 +63,10 @@ pub struct BlobParts {
 impl BlobParts {
     /// From the MLPs and `F` (row-major AUG x AUG), in the arena's order
     /// (see `estimator::blob`): encoder layers, decoder layers (weight then
-    /// bias each), `F`, `B` (zero: no input is modelled yet).
+    /// bias each), `F`, `B` (zero: no input is modelled yet). No gain
+    /// schedule: see [`BlobParts::set_schedule`].
     pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32]) -> Self {
-        let mut arena: Vec<f32> = Vec::with_capacity(ARENA_LEN);
+        let mut arena: Vec<f32> = Vec::with_capacity(SCHEDULE_AT);
         for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
             let (_, _, w, b) = linear_to_blob(l);
             arena.extend(w);
@@ -75,6 +77,25 @@ impl BlobParts {
         BlobParts {
             arena: le_bytes(&arena),
         }
+    }
+
+    /// `F` (row-major) as stored in the arena.
+    fn f(&self) -> Vec<f32> {
+        let at = estimator::blob::F_AT * 4;
+        self.arena[at..at + AUG_DIM * AUG_DIM * 4]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    }
+
+    /// Replaces the arena's gain schedule with the one of `filter` (its
+    /// `schedule_steps` updates, from [`gain_schedule`]); a blob must be
+    /// made with the same `filter`.
+    pub fn set_schedule(&mut self, filter: &FilterSpec) -> Result<()> {
+        let schedule = gain_schedule(&self.f(), filter)?;
+        self.arena.truncate(SCHEDULE_AT * 4);
+        self.arena.extend(le_bytes(&schedule));
+        Ok(())
     }
 
     /// The blob, borrowing from `self`.
@@ -99,6 +120,63 @@ impl BlobParts {
             },
         }
     }
+}
+
+/// The gain schedule of `filter.schedule_steps` updates for `F`
+/// (row-major), as the blob stores it (see `estimator::blob`): per update
+/// `K^T` and the parameters' standard deviations, then `P_T`.
+///
+/// The textbook recursion in f64, from the prior: `P' = F P F^T + Q`,
+/// `S = H P' H^T + R` (Cholesky; an `S` that is not positive definite is
+/// an error naming the update), `K = P' H^T S^-1`, and Joseph's
+/// `P = (I - K H) P' (I - K H)^T + K R K^T`, made exactly symmetric.
+pub fn gain_schedule(f: &[f32], filter: &FilterSpec) -> Result<Vec<f32>> {
+    type Aug = SMatrix<f64, AUG_DIM, AUG_DIM>;
+    anyhow::ensure!(f.len() == AUG_DIM * AUG_DIM, "F has {} values", f.len());
+    let f = Aug::from_row_iterator(f.iter().map(|&v| f64::from(v)));
+    let diag = |v: &[f32; AUG_DIM]| {
+        Aug::from_diagonal(&SVector::from_iterator(v.iter().map(|&x| f64::from(x))))
+    };
+    let q = diag(&filter.q);
+    let r = SMatrix::<f64, LATENT_DIM, LATENT_DIM>::from_diagonal(&SVector::from_iterator(
+        filter.r.iter().map(|&x| f64::from(x)),
+    ));
+    let h = SMatrix::<f64, LATENT_DIM, AUG_DIM>::from_fn(|i, j| f64::from(u8::from(i == j)));
+    let mut p = diag(&filter.prior_var);
+    let steps = usize::from(filter.schedule_steps);
+    let mut out = Vec::with_capacity(steps * estimator::blob::SCHEDULE_STEP_LEN + p.len());
+    for n in 1..=steps {
+        let pp = f * p * f.transpose() + q;
+        let s = h * pp * h.transpose() + r;
+        let chol = s
+            .cholesky()
+            .with_context(|| format!("gain schedule: S not positive definite at update {n}"))?;
+        // K^T = S^-1 H P' (S and P' symmetric).
+        let kt = chol.solve(&(h * pp));
+        let ikh = Aug::identity() - kt.transpose() * h;
+        let joseph = ikh * pp * ikh.transpose() + kt.transpose() * r * kt;
+        p = (joseph + joseph.transpose()) * 0.5;
+        for k in 0..LATENT_DIM {
+            out.extend((0..AUG_DIM).map(|i| kt[(k, i)] as f32));
+        }
+        out.extend((0..PARAM_DIM).map(|a| {
+            let v = p[(LATENT_DIM + a, LATENT_DIM + a)];
+            v.max(0.0).sqrt() as f32
+        }));
+    }
+    if steps > 0 {
+        // Row-major; p is exactly symmetric, so its f32 image is too.
+        out.extend(
+            (0..AUG_DIM)
+                .flat_map(|i| (0..AUG_DIM).map(move |j| (i, j)))
+                .map(|ij| p[ij] as f32),
+        );
+    }
+    anyhow::ensure!(
+        out.iter().all(|v| v.is_finite()),
+        "gain schedule: not finite"
+    );
+    Ok(out)
 }
 
 /// Serialises a blob with its CRC.
@@ -131,6 +209,8 @@ pub struct ExportInfo {
     pub sigma_threshold: f32,
     /// Blob size, bytes.
     pub blob_bytes: usize,
+    /// Updates in the blob's gain schedule.
+    pub schedule_steps: u16,
 }
 
 /// Sigma of the length corrections over the protocol's estimation window.
@@ -209,8 +289,16 @@ pub fn export_baseline(dir: &Path, out: &Path) -> Result<BaselineInfo> {
     Ok(info)
 }
 
-/// Exports KLM run `dir` to the blob `out`.
+/// Exports KLM run `dir` to the blob `out`, with a gain schedule over the
+/// protocol's estimation window ([`ESTIMATION_STEPS`] measurements, so
+/// `ESTIMATION_STEPS - 1` updates).
 pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
+    export_with(dir, out, (ESTIMATION_STEPS - 1) as u16)
+}
+
+/// Exports KLM run `dir` to the blob `out` with a gain schedule of
+/// `schedule_steps` updates (0: none).
+pub fn export_with(dir: &Path, out: &Path, schedule_steps: u16) -> Result<ExportInfo> {
     let paths = RunPaths::new(dir);
     let (cfg, state) = run_files(dir)?;
     anyhow::ensure!(
@@ -223,7 +311,7 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
     let model: Klm = train::load_model(&paths, &cfg, &device)?;
     let ds = train::training_data(&cfg);
     let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
-    let parts = BlobParts::new(&model.enc, &model.dec, &f);
+    let mut parts = BlobParts::new(&model.enc, &model.dec, &f);
     let params = [
         ParamSpec {
             name: "length",
@@ -270,7 +358,9 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
         prior_var,
         burn_in: BURN_IN,
         sigma_threshold: 1.0,
+        schedule_steps,
     };
+    parts.set_schedule(&filter)?;
     // Calibrate: sigma over every training rollout's estimation window.
     let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
     let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -295,6 +385,7 @@ pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
         train_sigma_median: sigmas[sigmas.len() / 2],
         sigma_threshold: filter.sigma_threshold,
         blob_bytes: bytes.len(),
+        schedule_steps,
     };
     write_atomic(
         &out.with_extension("json"),
@@ -446,6 +537,7 @@ mod tests {
             prior_var: [1.0; AUG_DIM],
             burn_in: 32,
             sigma_threshold: 0.05,
+            schedule_steps: 0,
         };
         let params = [
             ParamSpec {

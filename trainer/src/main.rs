@@ -96,6 +96,12 @@ enum Cmd {
         /// weights/mlp.bpk by the run's model).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Updates whose gains the blob precomputes (a KLM only): the
+        /// filter's covariance recursion does not depend on the
+        /// measurements, so the device skips it for these. Default: the
+        /// protocol's estimation window (64 measurements, 63 updates).
+        #[arg(long, default_value_t = (export::ESTIMATION_STEPS - 1) as u16)]
+        schedule_steps: u16,
     },
     /// Runs the on-device estimator over each rollout of a CSV.
     Estimate {
@@ -354,10 +360,14 @@ fn run(cmd: Cmd) -> Result<()> {
                 train::RunPaths::new(&run).log.display()
             );
         }
-        Cmd::Export { run, out } => match export::run_kind(&run)? {
+        Cmd::Export {
+            run,
+            out,
+            schedule_steps,
+        } => match export::run_kind(&run)? {
             ModelKind::Klm => {
                 let out = out.unwrap_or_else(|| "weights/pendulum.kkf".into());
-                let info = export::export(&run, &out)?;
+                let info = export::export_with(&run, &out, schedule_steps)?;
                 println!(
                     "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
                     out.display(),

@@ -253,52 +253,66 @@ fn run(line: &mut Line) -> bool {
         .uint(core::mem::size_of::<Estimator>() as u64)
         .send();
 
-    let mut est = Estimator::new(&model);
+    // Each rollout twice: on the blob's gain schedule (as shipped), and
+    // with the covariance recursion at every update (what runs after the
+    // schedule's last update).
+    let modes = [
+        ("scheduled", Estimator::new(&model)),
+        ("recursive", Estimator::without_schedule(&model)),
+    ];
     for (id, xs) in &rollouts::ROLLOUTS {
-        est.reset();
-        let mut step_ticks: u64 = 0;
-        let mut steps: u64 = 0;
-        let mut last = None;
-        for x in xs {
-            let before = SYST::get_current();
-            let out = est.step(x);
-            let after = SYST::get_current();
-            let out = match out {
-                Ok(o) => o,
-                Err(e) => {
-                    line.str("error: step refused: ").str(e.message()).send();
-                    return false;
+        for (mode, est) in &modes {
+            let mut est = est.clone();
+            est.reset();
+            let mut step_ticks: u64 = 0;
+            let mut steps: u64 = 0;
+            let mut last = None;
+            for x in xs {
+                let before = SYST::get_current();
+                let out = est.step(x);
+                let after = SYST::get_current();
+                let out = match out {
+                    Ok(o) => o,
+                    Err(e) => {
+                        line.str("error: step refused: ").str(e.message()).send();
+                        return false;
+                    }
+                };
+                // The first step only encodes and sets the prior.
+                if out.t > 0 {
+                    step_ticks += u64::from(ticks(before, after));
+                    steps += 1;
                 }
-            };
-            // The first step only encodes and sets the prior.
-            if out.t > 0 {
-                step_ticks += u64::from(ticks(before, after));
-                steps += 1;
+                line.str("step ")
+                    .uint(u64::from(*id))
+                    .str(" ")
+                    .str(mode)
+                    .str(" ");
+                line.uint(u64::from(out.t)).str(" ");
+                for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
+                    line.hex(*v);
+                }
+                line.str(trust_word(out.trust)).send();
+                last = Some(out);
             }
-            line.str("step ").uint(u64::from(*id)).str(" ");
-            line.uint(u64::from(out.t)).str(" ");
-            for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
-                line.hex(*v);
+            let before = SYST::get_current();
+            let z = model.encode(&model.normalise(&[0.5, -0.25]));
+            let after = SYST::get_current();
+            core::hint::black_box(z);
+            if let Some(out) = last {
+                let p = out.params;
+                line.str("rollout ").uint(u64::from(*id));
+                line.str(" mode=").str(mode);
+                line.str(" length=").dec(p[0]);
+                line.str(" std=").dec(out.param_std[0]);
+                line.str(" sigma=").dec(out.sigma[0]);
+                line.str(" trust=").str(trust_word(out.trust));
+                line.str(" steps=").uint(steps);
+                line.str(" step_ticks=").uint(step_ticks);
+                line.str(" encode_ticks=")
+                    .uint(u64::from(ticks(before, after)));
+                line.send();
             }
-            line.str(trust_word(out.trust)).send();
-            last = Some(out);
-        }
-        let before = SYST::get_current();
-        let z = model.encode(&model.normalise(&[0.5, -0.25]));
-        let after = SYST::get_current();
-        core::hint::black_box(z);
-        if let Some(out) = last {
-            let p = out.params;
-            line.str("rollout ").uint(u64::from(*id));
-            line.str(" length=").dec(p[0]);
-            line.str(" std=").dec(out.param_std[0]);
-            line.str(" sigma=").dec(out.sigma[0]);
-            line.str(" trust=").str(trust_word(out.trust));
-            line.str(" steps=").uint(steps);
-            line.str(" step_ticks=").uint(step_ticks);
-            line.str(" encode_ticks=")
-                .uint(u64::from(ticks(before, after)));
-            line.send();
         }
     }
     true
