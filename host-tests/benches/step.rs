@@ -2,10 +2,14 @@
 //! instead, measured in the same run:
 //!
 //! - `estimator/step`: [`Estimator::step`] (normalise, encode, filter),
-//!   per step over the protocol's 64-step window of a test rollout.
+//!   per step over the protocol's 64-step window of a test rollout: the
+//!   updates apply the blob's gain schedule.
 //! - `estimator/encode`: [`Model::encode`] alone.
 //! - `estimator/filter`: [`Estimator::step_latent`] alone (the measurement
 //!   already encoded).
+//! - `estimator/step_recursive`, `estimator/filter_recursive`: the same
+//!   with [`Estimator::without_schedule`], the covariance recursion at
+//!   every update (what a step costs after the schedule's 63 updates).
 //! - `peer/burn_encode`: the same encoder architecture through burn's
 //!   forward pass (flex CPU backend, a batch of one).
 //! - `peer/f64_filter`: an f64 Kalman filter on dynamic nalgebra matrices
@@ -59,6 +63,24 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("filter", |b| {
         let mut est = Estimator::new(&model);
+        b.iter(|| {
+            est.reset();
+            for z in &zs {
+                black_box(est.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    g.bench_function("step_recursive", |b| {
+        let mut est = Estimator::without_schedule(&model);
+        b.iter(|| {
+            est.reset();
+            for x in &xs {
+                black_box(est.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("filter_recursive", |b| {
+        let mut est = Estimator::without_schedule(&model);
         b.iter(|| {
             est.reset();
             for z in &zs {
@@ -152,11 +174,27 @@ fn ratios() {
             ("estimator", "filter"),
             ("peer", "adskalman_filter"),
         ),
+        (
+            "step, rec.",
+            ("estimator", "step_recursive"),
+            ("peer", "step"),
+        ),
+        (
+            "filter, rec.",
+            ("estimator", "filter_recursive"),
+            ("peer", "f64_filter"),
+        ),
+        (
+            "filter, rec. (ads)",
+            ("estimator", "filter_recursive"),
+            ("peer", "adskalman_filter"),
+        ),
     ];
-    println!("\nper step (ns)        estimator        peer   peer/estimator");
+    println!("\nper step (ns)          estimator        peer   peer/estimator");
     for (what, ours, peer) in pairs {
         if let (Some(a), Some(b)) = (read(ours.0, ours.1), read(peer.0, peer.1)) {
-            println!("{what:<16} {a:>13.0} {b:>11.0} {:>16.1}", b / a);
+            println!("{what:<18} {a:>13.0} {b:>11.0} {:>16.1}", b / a);
         }
     }
+    println!("(rec.: without the gain schedule, the covariance recursion at every update)");
 }

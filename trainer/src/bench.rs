@@ -4,9 +4,13 @@
 //! Each figure is the median, over batches, of the time of one pass over
 //! [`window`] (the protocol's 64-step estimation window of one test
 //! rollout) divided by its steps. Measured:
-//! - `step`: [`Estimator::step`] (normalise, encode, filter);
+//! - `step`: [`Estimator::step`] (normalise, encode, filter), its updates
+//!   on the blob's gain schedule;
 //! - `encoder`: [`Model::encode`] alone;
 //! - `filter`: [`Estimator::step_latent`] alone (measurement encoded);
+//! - `step_recursive`, `filter_recursive`: the same with
+//!   [`Estimator::without_schedule`], the covariance recursion at every
+//!   update (what a step costs after the schedule's last update);
 //! - peer `burn_encoder`: the same encoder architecture (2 -> 128 -> 128
 //!   -> 16, the blob's activation, random weights: burn's time does not
 //!   depend on them) through burn's forward pass, flex CPU backend, a
@@ -63,6 +67,10 @@ pub struct BenchReport {
     pub encoder_ns: f64,
     /// [`Estimator::step_latent`], ns per step.
     pub filter_ns: f64,
+    /// [`Estimator::step`] without the gain schedule, ns per step.
+    pub step_recursive_ns: f64,
+    /// [`Estimator::step_latent`] without the gain schedule, ns per step.
+    pub filter_recursive_ns: f64,
     /// burn's forward pass of the same encoder, ns per step.
     pub peer_burn_encoder_ns: f64,
     /// The f64 `DMatrix` filter, ns per step.
@@ -79,6 +87,12 @@ pub struct BenchReport {
     pub encoder_speedup: f64,
     /// `peer_f64_filter_ns / filter_ns`.
     pub filter_speedup: f64,
+    /// `peer_step_ns / step_recursive_ns`.
+    pub step_recursive_speedup: f64,
+    /// `peer_f64_filter_ns / filter_recursive_ns`.
+    pub filter_recursive_speedup: f64,
+    /// `peer_adskalman_filter_ns / filter_recursive_ns`.
+    pub adskalman_recursive_speedup: f64,
     /// Steps per measured pass.
     pub steps: usize,
     /// Measured passes per figure (median taken).
@@ -114,7 +128,7 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         .iter()
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
-    let budget = Duration::from_secs_f64((seconds / 6.0).max(0.01));
+    let budget = Duration::from_secs_f64((seconds / 9.0).max(0.01));
     let n = xs.len();
 
     let mut est = Estimator::new(model);
@@ -133,6 +147,19 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         est.reset();
         for z in &zs {
             black_box(est.step_latent(black_box(z)).ok());
+        }
+    });
+    let mut rec = Estimator::without_schedule(model);
+    let (step_recursive_ns, _) = per_step(budget, n, || {
+        rec.reset();
+        for x in &xs {
+            black_box(rec.step(black_box(x)).ok());
+        }
+    });
+    let (filter_recursive_ns, _) = per_step(budget, n, || {
+        rec.reset();
+        for z in &zs {
+            black_box(rec.step_latent(black_box(z)).ok());
         }
     });
 
@@ -187,6 +214,11 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         step_speedup: peer_step_ns / step_ns,
         encoder_speedup: peer_burn_encoder_ns / encoder_ns,
         filter_speedup: peer_f64_filter_ns / filter_ns,
+        step_recursive_ns,
+        filter_recursive_ns,
+        step_recursive_speedup: peer_step_ns / step_recursive_ns,
+        filter_recursive_speedup: peer_f64_filter_ns / filter_recursive_ns,
+        adskalman_recursive_speedup: peer_adskalman_filter_ns / filter_recursive_ns,
         steps: n,
         batches,
     }
@@ -223,6 +255,25 @@ pub fn table(r: &BenchReport) -> String {
     s += &row(
         "filter",
         r.filter_ns,
+        "adskalman (f32)",
+        r.peer_adskalman_filter_ns,
+    );
+    s += "without the gain schedule (the covariance recursion at every update):\n";
+    s += &row(
+        "step",
+        r.step_recursive_ns,
+        "burn + f64 DMatrix",
+        r.peer_step_ns,
+    );
+    s += &row(
+        "filter",
+        r.filter_recursive_ns,
+        "f64 DMatrix filter",
+        r.peer_f64_filter_ns,
+    );
+    s += &row(
+        "filter",
+        r.filter_recursive_ns,
         "adskalman (f32)",
         r.peer_adskalman_filter_ns,
     );

@@ -511,6 +511,8 @@ fn bench_reports_ours_and_the_peers_per_step() {
         "peer_f64_filter_ns",
         "peer_step_ns",
         "peer_adskalman_filter_ns",
+        "step_recursive_ns",
+        "filter_recursive_ns",
     ] {
         let ns = v[k]
             .as_f64()
@@ -523,6 +525,10 @@ fn bench_reports_ours_and_the_peers_per_step() {
     let ratio = v["step_speedup"].as_f64().unwrap();
     let want = v["peer_step_ns"].as_f64().unwrap() / v["step_ns"].as_f64().unwrap();
     assert!((ratio - want).abs() < 1e-9 * want);
+    let ratio = v["filter_recursive_speedup"].as_f64().unwrap();
+    let want =
+        v["peer_f64_filter_ns"].as_f64().unwrap() / v["filter_recursive_ns"].as_f64().unwrap();
+    assert!((ratio - want).abs() < 1e-9 * want);
     let table = run_ok(
         koopman()
             .current_dir(root())
@@ -534,6 +540,7 @@ fn bench_reports_ours_and_the_peers_per_step() {
         "filter",
         "burn forward",
         "f64 DMatrix filter",
+        "without the gain schedule",
     ] {
         assert!(table.contains(row), "{row} missing from:\n{table}");
     }
