@@ -7,7 +7,8 @@
 //!     target/release/examples/steps step 1000
 //! ```
 //!
-//! The first argument picks what runs (`step`, `encode`, `filter`), the
+//! The first argument picks what runs (`step`, `encode`, `filter`, and
+//! `step-recursive`, `filter-recursive` without the gain schedule), the
 //! second the repetitions. Instructions per step are callgrind's total
 //! `Ir` divided by `64 * REPS`.
 
@@ -17,8 +18,12 @@ use estimator::{Estimator, Latent, Model, State};
 use host_tests::{bench_window, shipped_blob};
 
 #[inline(never)]
-fn run_step(model: &Model<'_>, xs: &[State], reps: usize) {
-    let mut est = Estimator::new(model);
+fn run_step(model: &Model<'_>, xs: &[State], reps: usize, scheduled: bool) {
+    let mut est = if scheduled {
+        Estimator::new(model)
+    } else {
+        Estimator::without_schedule(model)
+    };
     for _ in 0..reps {
         est.reset();
         for x in xs {
@@ -37,8 +42,12 @@ fn run_encode(model: &Model<'_>, xs: &[State], reps: usize) {
 }
 
 #[inline(never)]
-fn run_filter(model: &Model<'_>, zs: &[Latent], reps: usize) {
-    let mut est = Estimator::new(model);
+fn run_filter(model: &Model<'_>, zs: &[Latent], reps: usize, scheduled: bool) {
+    let mut est = if scheduled {
+        Estimator::new(model)
+    } else {
+        Estimator::without_schedule(model)
+    };
     for _ in 0..reps {
         est.reset();
         for z in zs {
@@ -59,11 +68,15 @@ fn main() {
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
     match what {
-        "step" => run_step(&model, &xs, reps),
+        "step" => run_step(&model, &xs, reps, true),
+        "step-recursive" => run_step(&model, &xs, reps, false),
         "encode" => run_encode(&model, &xs, reps),
-        "filter" => run_filter(&model, &zs, reps),
+        "filter" => run_filter(&model, &zs, reps, true),
+        "filter-recursive" => run_filter(&model, &zs, reps, false),
         other => {
-            eprintln!("unknown mode {other}: step, encode or filter");
+            eprintln!(
+                "unknown mode {other}: step, encode, filter, step-recursive or filter-recursive"
+            );
             std::process::exit(2);
         }
     }
