@@ -26,7 +26,7 @@ const HIDDEN_BLOCK: usize = 32;
 #[cfg(not(target_arch = "x86_64"))]
 const HIDDEN_BLOCK: usize = 16;
 // `dense` needs the block to divide the hidden width.
-const _: () = assert!(HIDDEN_DIM % HIDDEN_BLOCK == 0);
+const _: () = assert!(HIDDEN_DIM.is_multiple_of(HIDDEN_BLOCK));
 
 /// One MLP, `I -> H -> H -> O`, its weights borrowed from the blob as
 /// typed arrays (input-major: `w[j]` is input `j`'s weights).
