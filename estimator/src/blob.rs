@@ -42,9 +42,19 @@
 //! (`1..=T`), [`SCHEDULE_STEP_LEN`] values: `K_n^T` ([`LATENT_DIM`] rows of
 //! [`AUG_DIM`]: row `k` says how innovation `k` moves `[y; p]`), then the
 //! parameters' standard deviations after the update, `sqrt(diag P_pp)`.
-//! After the `T` steps come the [`AUG_DIM`]^2 values of `P_T` (row-major),
-//! from which the filter carries the recursion on by itself. With `T = 0`
-//! there is no schedule and no `P_T`.
+//!
+//! After the `T` steps comes the tail ([`TAIL_LEN`] values), which carries
+//! the filter on after update `T` in Friedland's two-stage form (exact for
+//! static parameters, `Q_p = 0`, which a blob with a schedule must have):
+//! a bias-free filter over `y` alone, whose gain `K~` has converged by
+//! update `T` (the exporter checks it) and is held, and a filter over the
+//! parameters with the sensitivity `V` of `y` to them. In order:
+//! `K~^T` ([`LATENT_DIM`] rows of [`LATENT_DIM`]), `S~^-1` (the bias-free
+//! innovation covariance's inverse, symmetric), `P~` (the bias-free
+//! covariance after an update, symmetric), `V_T` ([`PARAM_DIM`] columns of
+//! [`LATENT_DIM`]) and `P_b,T` (the parameters' covariance,
+//! [`PARAM_DIM`] squared, symmetric). See [`crate::filter`] for the
+//! update. With `T = 0` there is no schedule and no tail.
 
 use serde::{Deserialize, Serialize};
 
@@ -184,12 +194,16 @@ pub const SCHEDULE_AT: usize = B_AT + AUG_DIM * INPUT_DIM;
 /// deviations.
 pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
 
+/// Values of the schedule's tail: `K~^T`, `S~^-1`, `P~`, `V_T`, `P_b,T`.
+pub const TAIL_LEN: usize =
+    3 * LATENT_DIM * LATENT_DIM + PARAM_DIM * LATENT_DIM + PARAM_DIM * PARAM_DIM;
+
 /// Length of the arena with a schedule of `steps` updates, in `f32`s: the
-/// weights, `steps` scheduled updates and, when `steps > 0`, `P_T`.
+/// weights, `steps` scheduled updates and, when `steps > 0`, the tail.
 pub const fn arena_len(steps: u16) -> usize {
     let steps = steps as usize;
-    let end_cov = if steps > 0 { AUG_DIM * AUG_DIM } else { 0 };
-    SCHEDULE_AT + steps * SCHEDULE_STEP_LEN + end_cov
+    let tail = if steps > 0 { TAIL_LEN } else { 0 };
+    SCHEDULE_AT + steps * SCHEDULE_STEP_LEN + tail
 }
 
 /// Where layer `k` of `net` lies in the arena, in `f32`s:
@@ -315,14 +329,13 @@ impl<'a> Body<'a> {
         let gain = LATENT_DIM * AUG_DIM;
         (self.span(at, gain), self.span(at + gain, PARAM_DIM))
     }
-    /// `P_T` after the last scheduled update, row-major (empty without a
-    /// schedule).
-    pub fn schedule_end_covariance(&self) -> F32s<'a> {
+    /// The schedule's tail (see the module docs), empty without a schedule.
+    pub fn schedule_tail(&self) -> F32s<'a> {
         let steps = usize::from(self.filter.schedule_steps);
         if steps == 0 {
             return F32s(&[]);
         }
-        self.span(SCHEDULE_AT + steps * SCHEDULE_STEP_LEN, AUG_DIM * AUG_DIM)
+        self.span(SCHEDULE_AT + steps * SCHEDULE_STEP_LEN, TAIL_LEN)
     }
     /// Layer `k` of `net`: its input-major weight and its bias.
     pub fn layer(&self, net: Net, k: usize) -> (F32s<'a>, F32s<'a>) {
@@ -426,15 +439,28 @@ impl<'a> Blob<'a> {
         if !b.params.iter().all(|p| finite(&p.train_range)) {
             return Err(Error::BlobNonFinite);
         }
-        // The schedule's standard deviations are not negative and its
-        // `P_T` is symmetric with a diagonal that is not negative.
+        // A schedule needs static parameters; its standard deviations are
+        // not negative, and the tail's covariances are symmetric with
+        // diagonals that are not negative (S~^-1 symmetric too).
+        if b.filter.schedule_steps > 0 && b.filter.q.iter().skip(LATENT_DIM).any(|v| *v != 0.0) {
+            return Err(Error::BlobParamsNotStatic);
+        }
         let stds_ok = (1..=usize::from(b.filter.schedule_steps))
             .all(|n| b.schedule_step(n).1.iter().all(|v| v >= 0.0));
-        let pt = b.schedule_end_covariance();
-        let at = |i: usize, j: usize| pt.get(i * AUG_DIM + j);
-        let pt_ok = (0..AUG_DIM)
-            .all(|i| at(i, i).is_none_or(|v| v >= 0.0) && (0..i).all(|j| at(i, j) == at(j, i)));
-        if !(stds_ok && pt_ok) {
+        let tail = b.schedule_tail();
+        let sym = |at: usize, n: usize, diag_sign: bool| {
+            let v = |i: usize, j: usize| tail.get(at + i * n + j);
+            (0..n).all(|i| {
+                (!diag_sign || v(i, i).is_none_or(|d| d >= 0.0))
+                    && (0..i).all(|j| v(i, j) == v(j, i))
+            })
+        };
+        let l2 = LATENT_DIM * LATENT_DIM;
+        let tail_ok = tail.is_empty()
+            || (sym(l2, LATENT_DIM, false)
+                && sym(2 * l2, LATENT_DIM, true)
+                && sym(3 * l2 + PARAM_DIM * LATENT_DIM, PARAM_DIM, true));
+        if !(stds_ok && tail_ok) {
             return Err(Error::BlobNonFinite);
         }
         b.filter.check()

@@ -29,7 +29,7 @@
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
-use crate::model::Model;
+use crate::model::{Model, Tail};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
 
 /// `[y; p]` as a vector.
@@ -41,6 +41,10 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 type Cov = [[f32; AUG_DIM]; AUG_DIM];
 /// A [`LATENT_DIM`] square matrix (`S` and its factors).
 type LatentSquare = [[f32; LATENT_DIM]; LATENT_DIM];
+/// [`PARAM_DIM`] columns of [`LATENT_DIM`]: `U`, `V` of the two-stage form.
+type Sensitivity = [[f32; LATENT_DIM]; PARAM_DIM];
+/// A [`PARAM_DIM`] square matrix (`P_b`).
+type ParamSquare = [[f32; PARAM_DIM]; PARAM_DIM];
 
 /// The last [`PARAM_DIM`] entries of a row: its `p` part.
 #[inline(always)]
@@ -257,7 +261,11 @@ impl Spread {
 pub struct Estimator<'m> {
     model: &'m Model<'m>,
     g: Aug,
+    /// `P` when the recursion runs here (without the schedule).
     p: Cov,
+    /// The two-stage form after the schedule: `V` and `P_b`.
+    v: Sensitivity,
+    pb: ParamSquare,
     param_std: [f32; PARAM_DIM],
     t: u32,
     started: bool,
@@ -273,6 +281,8 @@ impl<'m> Estimator<'m> {
             model,
             g: [0.0; AUG_DIM],
             p: [[0.0; AUG_DIM]; AUG_DIM],
+            v: [[0.0; LATENT_DIM]; PARAM_DIM],
+            pb: [[0.0; PARAM_DIM]; PARAM_DIM],
             param_std: [0.0; PARAM_DIM],
             t: 0,
             started: false,
@@ -311,11 +321,50 @@ impl<'m> Estimator<'m> {
 
     /// The covariance `P` after the last update, or `None` after a
     /// scheduled update before the last one (the schedule stores the
-    /// gains, not every `P`; after the last it stores `P_T`).
+    /// gains, not every `P`). From update `T` on it is assembled from the
+    /// two-stage form, `[P~ + V P_b V^T, V P_b; P_b V^T, P_b]`.
     pub fn covariance(&self) -> Option<AugMatrix> {
-        let scheduled_inside =
-            self.scheduled && self.started && self.t >= 1 && self.t < self.model.schedule_steps();
-        (!scheduled_inside).then(|| AugMatrix::from_data(ArrayStorage(self.p)))
+        let tail = self.model.schedule_tail();
+        let t_end = self.model.schedule_steps();
+        match tail {
+            Some(tail) if self.scheduled && self.started && self.t >= 1 => {
+                (self.t >= t_end).then(|| self.assembled(tail))
+            }
+            _ => Some(AugMatrix::from_data(ArrayStorage(self.p))),
+        }
+    }
+
+    /// `P` from the two-stage form (upper triangle, then mirrored).
+    fn assembled(&self, tail: &Tail<'_>) -> AugMatrix {
+        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
+        // V P_b, column a = sum_b V_b P_b[b][a].
+        let mut vpb = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, col) in vpb.iter_mut().enumerate() {
+            *col = combo(
+                self.pb
+                    .iter()
+                    .map(|row| row.get(a).copied().unwrap_or(0.0))
+                    .zip(&self.v),
+            );
+        }
+        for (i, (row, pt_row)) in p.iter_mut().zip(tail.pt).enumerate() {
+            for (j, (d, pt)) in row.iter_mut().zip(pt_row).enumerate().skip(i) {
+                let outer = vpb.iter().zip(&self.v).fold(0.0f32, |acc, (c, v)| {
+                    acc + c.get(i).copied().unwrap_or(0.0) * v.get(j).copied().unwrap_or(0.0)
+                });
+                *d = pt + outer;
+            }
+            for (d, c) in row.iter_mut().skip(LATENT_DIM).zip(&vpb) {
+                *d = c.get(i).copied().unwrap_or(0.0);
+            }
+        }
+        for (row, pb_row) in p.iter_mut().skip(LATENT_DIM).zip(&self.pb) {
+            for (d, v) in row.iter_mut().skip(LATENT_DIM).zip(pb_row) {
+                *d = *v;
+            }
+        }
+        mirror_upper(&mut p);
+        AugMatrix::from_data(ArrayStorage(p))
     }
 
     /// `F` from the model.
@@ -369,19 +418,34 @@ impl<'m> Estimator<'m> {
             return Ok(self.output([0.0; PARAM_DIM]));
         }
         let t = self.t.saturating_add(1);
-        let scheduled = self.scheduled.then(|| self.model.scheduled_gain(t));
-        let (g, p, param_std) = if let Some(Some((kt, std))) = scheduled {
-            let g = self.scheduled_update(z, kt)?;
-            // After the last scheduled update the recursion goes on from
-            // the blob's P_T; before it, P is not tracked.
-            let p = match self.model.schedule_end_covariance() {
-                Some(pt) if t == self.model.schedule_steps() => *pt,
-                _ => self.p,
-            };
-            (g, p, *std)
-        } else {
-            let (g, p) = self.predict_update(z)?;
-            (g, p, diag_std(&p))
+        let (mut v, mut pb) = (self.v, self.pb);
+        let mut p = self.p;
+        let tail = self.model.schedule_tail().filter(|_| self.scheduled);
+        let (g, param_std) = match (tail, self.model.scheduled_gain(t)) {
+            (Some(tail), Some((kt, std))) => {
+                let g = self.scheduled_update(z, kt)?;
+                // After the last scheduled update the filter goes on in
+                // two-stage form from the blob's V_T and P_b,T.
+                if t == self.model.schedule_steps() {
+                    (v, pb) = (*tail.v, *tail.pb);
+                }
+                (g, *std)
+            }
+            (Some(tail), None) => {
+                let g;
+                (g, v, pb) = self.two_stage_update(z, tail)?;
+                let mut std = [0.0; PARAM_DIM];
+                for (k, s) in std.iter_mut().enumerate() {
+                    let d = pb.get(k).and_then(|r| r.get(k)).copied().unwrap_or(0.0);
+                    *s = libm::sqrtf(d.max(0.0));
+                }
+                (g, std)
+            }
+            (None, _) => {
+                let g;
+                (g, p) = self.predict_update(z)?;
+                (g, diag_std(&p))
+            }
         };
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction.iter_mut().zip(
@@ -393,6 +457,8 @@ impl<'m> Estimator<'m> {
         }
         self.g = g;
         self.p = p;
+        self.v = v;
+        self.pb = pb;
         self.param_std = param_std;
         self.t = t;
         if t >= u32::from(spec.burn_in) {
@@ -422,6 +488,106 @@ impl<'m> Estimator<'m> {
         }
         if g.iter().fold(true, |ok, v| ok & v.is_finite()) {
             Ok(g)
+        } else {
+            Err(Error::FilterNonFinite)
+        }
+    }
+
+    /// One update in two-stage form (after the schedule), leaving `self`
+    /// alone; returns the new mean, `V` and `P_b`. With the held
+    /// bias-free gain `K~` and `S~^-1` from the tail:
+    /// `U = A V + B` (the sensitivity predicted), `W = S~^-1 U`,
+    /// `K_b = (I + P_b U^T W)^-1 P_b W^T` (the parameters' gain, the
+    /// push-through form of `P_b U^T (U P_b U^T + S~)^-1`),
+    /// `V = U - K~ U`; the mean moves by `K_y nu = K~ nu + V K_b nu` and
+    /// `p` by `K_b nu`; `P_b = J P_b J^T + K_b S~ K_b^T` with
+    /// `J = I - K_b U` (Joseph's form) and `K_b S~ = (I + P_b U^T W)^-1 P_b U^T`.
+    fn two_stage_update(
+        &self,
+        z: &Latent,
+        tail: &Tail<'_>,
+    ) -> Result<(Aug, Sensitivity, ParamSquare), Error> {
+        let ct = self.model.koopman_columns();
+        let y = combo(self.g.iter().copied().zip(ct));
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        // U_a = sum_k V_a[k] A^T_k + B^T_a (rows of C^T: A's columns, then B's).
+        let mut u: Sensitivity = [[0.0; LATENT_DIM]; PARAM_DIM];
+        for (a, (ua, va)) in u.iter_mut().zip(&self.v).enumerate() {
+            *ua = combo(va.iter().copied().zip(ct.iter()));
+            if let Some(b) = ct.get(LATENT_DIM + a) {
+                for (o, bv) in ua.iter_mut().zip(b) {
+                    *o += bv;
+                }
+            }
+        }
+        let w: Sensitivity = u.map(|ua| combo(ua.iter().copied().zip(tail.si)));
+        // M = I + P_b U^T W, and its inverse.
+        let mut m = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        for (a, (row, pba)) in m.iter_mut().zip(&self.pb).enumerate() {
+            for (b, (d, wb)) in row.iter_mut().zip(&w).enumerate() {
+                let uw = |c: usize| u.get(c).map_or(0.0, |uc| dot(uc, wb));
+                *d = pba
+                    .iter()
+                    .enumerate()
+                    .fold(f32::from(u8::from(a == b)), |acc, (c, p)| acc + p * uw(c));
+            }
+        }
+        let mi = inverse2(&m).ok_or(Error::FilterNotPositiveDefinite)?;
+        // P_b W^T and P_b U^T, rows a; then K_b and K_b S~.
+        let pbw: Sensitivity = self.pb.map(|row| combo(row.iter().copied().zip(&w)));
+        let pbu: Sensitivity = self.pb.map(|row| combo(row.iter().copied().zip(&u)));
+        let kb: Sensitivity = mi.map(|row| combo(row.iter().copied().zip(&pbw)));
+        let kbs: Sensitivity = mi.map(|row| combo(row.iter().copied().zip(&pbu)));
+        let kb_nu = kb.map(|k| dot(&k, &nu));
+        // V = U - K~ U.
+        let mut v = u;
+        for (va, ua) in v.iter_mut().zip(&u) {
+            let ku = combo(ua.iter().copied().zip(tail.kt));
+            for (d, k) in va.iter_mut().zip(&ku) {
+                *d -= k;
+            }
+        }
+        // The mean.
+        let dy = combo(nu.iter().copied().zip(tail.kt));
+        let vk = combo(kb_nu.iter().copied().zip(&v));
+        let mut g = self.g;
+        for (((gi, yi), d), e) in g.iter_mut().zip(&y).zip(&dy).zip(&vk) {
+            *gi = yi + d + e;
+        }
+        for (gi, d) in g.iter_mut().skip(LATENT_DIM).zip(&kb_nu) {
+            *gi += d;
+        }
+        // P_b = J P_b J^T + K_b S~ K_b^T, J = I - K_b U; upper triangle,
+        // then mirrored.
+        let mut j = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        for (a, (row, ka)) in j.iter_mut().zip(&kb).enumerate() {
+            for (b, (d, ub)) in row.iter_mut().zip(&u).enumerate() {
+                *d = f32::from(u8::from(a == b)) - dot(ka, ub);
+            }
+        }
+        let jp: ParamSquare = j.map(|row| combo(row.iter().copied().zip(&self.pb)));
+        let mut pb = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        for (a, (row, (jpa, ksa))) in pb.iter_mut().zip(jp.iter().zip(&kbs)).enumerate() {
+            for (b, (d, (jb, kb_b))) in row.iter_mut().zip(j.iter().zip(&kb)).enumerate() {
+                if b >= a {
+                    *d = dot(jpa, jb) + dot(ksa, kb_b);
+                }
+            }
+        }
+        mirror_upper(&mut pb);
+        let finite = |r: &[f32]| r.iter().fold(true, |ok, x| ok & x.is_finite());
+        let ok = finite(&g)
+            && v.iter().all(|c| finite(c))
+            && pb.iter().all(|r| finite(r))
+            && pb
+                .iter()
+                .enumerate()
+                .all(|(a, r)| r.get(a).is_none_or(|d| *d >= 0.0));
+        if ok {
+            Ok((g, v, pb))
         } else {
             Err(Error::FilterNonFinite)
         }
@@ -638,6 +804,20 @@ impl<'m> Estimator<'m> {
             trust,
         }
     }
+}
+
+/// The inverse of a [`PARAM_DIM`] square matrix whose determinant is
+/// positive (as `I + P_b U^T W`'s is: its eigenvalues are at least 1);
+/// `None` otherwise.
+fn inverse2(m: &ParamSquare) -> Option<ParamSquare> {
+    const _: () = assert!(PARAM_DIM == 2);
+    let [[a, b], [c, d]] = *m;
+    let det = a * d - b * c;
+    if !(det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    let inv = 1.0 / det;
+    Some([[d * inv, -b * inv], [-c * inv, a * inv]])
 }
 
 /// `sqrt(diag P_pp)`.

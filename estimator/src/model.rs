@@ -79,6 +79,36 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
     }
 }
 
+/// The gain schedule's tail (see the blob's "gain schedule"), read in
+/// place: what the filter needs after update `T` in two-stage form.
+#[derive(Debug, Clone, Copy)]
+pub struct Tail<'a> {
+    /// `K~^T`: row `k` is column `k` of the held bias-free gain `K~`.
+    pub kt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
+    /// `S~^-1`, the inverse of the bias-free innovation covariance.
+    pub si: &'a [[f32; LATENT_DIM]; LATENT_DIM],
+    /// `P~`, the bias-free covariance after an update.
+    pub pt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
+    /// `V_T`, the sensitivity of `y` to `p` after update `T`, column by
+    /// column.
+    pub v: &'a [[f32; LATENT_DIM]; PARAM_DIM],
+    /// `P_b,T`, the parameters' covariance after update `T`.
+    pub pb: &'a [[f32; PARAM_DIM]; PARAM_DIM],
+}
+
+impl<'a> Tail<'a> {
+    fn from_arena(a: &'a [f32], at: usize) -> Result<Self, Error> {
+        let l2 = LATENT_DIM * LATENT_DIM;
+        Ok(Tail {
+            kt: rows(a, at)?,
+            si: rows(a, at + l2)?,
+            pt: rows(a, at + 2 * l2)?,
+            v: rows(a, at + 3 * l2)?,
+            pb: rows(a, at + 3 * l2 + PARAM_DIM * LATENT_DIM)?,
+        })
+    }
+}
+
 /// A validated model whose weights stay in the bytes it was read from.
 ///
 /// Only the latent rows of `F` are copied out of the blob, by rows and by
@@ -89,6 +119,7 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
 pub struct Model<'a> {
     blob: Blob<'a>,
     arena: &'a [f32],
+    tail: Option<Tail<'a>>,
     encoder: Mlp<'a, STATE_DIM, HIDDEN_DIM, LATENT_DIM>,
     decoder: Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
     c: KoopmanRows,
@@ -176,9 +207,19 @@ impl<'a> Model<'a> {
                 }
             }
         }
+        let steps = usize::from(blob.body.filter.schedule_steps);
+        let tail = if steps > 0 {
+            Some(Tail::from_arena(
+                arena,
+                SCHEDULE_AT + steps * SCHEDULE_STEP_LEN,
+            )?)
+        } else {
+            None
+        };
         Ok(Model {
             blob,
             arena,
+            tail,
             encoder,
             decoder,
             c,
@@ -224,14 +265,11 @@ impl<'a> Model<'a> {
         Some((kt, std))
     }
 
-    /// `P_T`, the covariance after the last scheduled update; `None`
-    /// without a schedule.
-    pub fn schedule_end_covariance(&self) -> Option<&'a [[f32; AUG_DIM]; AUG_DIM]> {
-        let t = self.schedule_steps() as usize;
-        if t == 0 {
-            return None;
-        }
-        rows(self.arena, SCHEDULE_AT + t * SCHEDULE_STEP_LEN).ok()
+    /// The schedule's tail, the filter after update `T` in two-stage form;
+    /// `None` without a schedule.
+    #[inline]
+    pub fn schedule_tail(&self) -> Option<&Tail<'a>> {
+        self.tail.as_ref()
     }
 
     /// The decoded blob.

@@ -37,17 +37,21 @@ fn edited(edit: impl FnOnce(&mut Vec<f32>, &mut estimator::blob::FilterSpec)) ->
 }
 
 /// The gain schedule is checked when the blob is read: its length against
-/// `schedule_steps`, its standard deviations against sign, its `P_T`
-/// against symmetry and sign.
+/// `schedule_steps`, its standard deviations against sign, its tail's
+/// matrices against symmetry and sign, and the parameters against process
+/// noise (the two-stage tail is exact only for static parameters).
 #[test]
 fn a_gain_schedule_that_does_not_fit_is_refused() {
     use estimator::blob::{SCHEDULE_AT, SCHEDULE_STEP_LEN};
-    use estimator::{AUG_DIM, LATENT_DIM};
+    use estimator::{AUG_DIM, LATENT_DIM, PARAM_DIM};
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
     let t = m.schedule_steps() as usize;
     assert_eq!(t, 63, "the shipped blob covers the protocol's 63 updates");
-    let end = SCHEDULE_AT + t * SCHEDULE_STEP_LEN;
+    // The tail: K~^T, S~^-1, P~ (16 x 16 each), V_T (2 x 16), P_b,T (2 x 2).
+    let tail = SCHEDULE_AT + t * SCHEDULE_STEP_LEN;
+    let l2 = LATENT_DIM * LATENT_DIM;
+    let pb = tail + 3 * l2 + PARAM_DIM * LATENT_DIM;
     // One update more than the arena holds.
     assert_eq!(
         edited(|_, f| f.schedule_steps += 1),
@@ -58,13 +62,16 @@ fn a_gain_schedule_that_does_not_fit_is_refused() {
         edited(|a, _| a[SCHEDULE_AT + 4 * SCHEDULE_STEP_LEN + LATENT_DIM * AUG_DIM] = -0.1),
         Error::BlobNonFinite
     );
-    // P_T not symmetric, or with a negative variance.
-    assert_eq!(edited(|a, _| a[end + 1] += 1.0), Error::BlobNonFinite);
+    // S~^-1 not symmetric; P~ with a negative variance; P_b not symmetric.
+    assert_eq!(edited(|a, _| a[tail + l2 + 1] += 1.0), Error::BlobNonFinite);
+    assert_eq!(edited(|a, _| a[tail + 2 * l2] = -1.0), Error::BlobNonFinite);
+    assert_eq!(edited(|a, _| a[pb + 1] += 1.0), Error::BlobNonFinite);
+    // Process noise on the length.
     assert_eq!(
-        edited(|a, _| a[end + AUG_DIM * AUG_DIM - 2 - AUG_DIM] = -1.0),
-        Error::BlobNonFinite
+        edited(|_, f| f.q[LATENT_DIM] = 1e-6),
+        Error::BlobParamsNotStatic
     );
-    // No schedule at all (and no P_T): a valid blob.
+    // No schedule at all (and no tail): a valid blob.
     use estimator::blob::Blob;
     let mut blob = Blob::from_bytes(&bytes).unwrap();
     blob.body.filter.schedule_steps = 0;

@@ -16,8 +16,10 @@ use estimator::{Estimator, Model, Trust};
 use host_tests::{root, shipped_blob};
 use trainer::data::{TEST_LENGTHS, TEST_PER_LENGTH, test_set};
 
-/// Steps per rollout in the firmware: the protocol's estimation window.
-const STEPS: usize = 64;
+/// Steps per rollout in the firmware: whole test rollouts, the protocol's
+/// 64-step estimation window (on the blob's gain schedule) and 64 more
+/// (the two-stage tail).
+const STEPS: usize = 128;
 /// Which of the 10 test rollouts per length the firmware filters
 /// (`theta_0 = pi/2 + k 0.4 pi / 9`).
 const K: usize = 4;
@@ -228,12 +230,16 @@ fn firmware_in_qemu_matches_the_host() {
     let stack = lines.iter().find(|l| l.starts_with("stack used")).unwrap();
     eprintln!("firmware: {stack}");
     for l in lines.iter().filter(|l| l.starts_with("rollout")) {
-        let steps: u64 = field(l, "steps").parse().unwrap();
-        let ticks: u64 = field(l, "step_ticks").parse().unwrap();
+        let per_step = |steps: &str, ticks: &str| {
+            let n: u64 = field(l, steps).parse().unwrap();
+            let t: u64 = field(l, ticks).parse().unwrap();
+            t * INSTRUCTIONS_PER_TICK / n.max(1)
+        };
         let enc: u64 = field(l, "encode_ticks").parse().unwrap();
         eprintln!(
-            "firmware: {l}\n  => {} instructions per step (encoder alone {})",
-            ticks * INSTRUCTIONS_PER_TICK / steps,
+            "firmware: {l}\n  => instructions per step: {} in the window (updates 1-63), {} after it; encoder alone {}",
+            per_step("window_steps", "window_ticks"),
+            per_step("after_steps", "after_ticks"),
             enc * INSTRUCTIONS_PER_TICK
         );
     }

@@ -38,6 +38,10 @@ mod rollouts {
 /// place.
 static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/pendulum.kkf"));
 
+/// Measurements in the protocol's estimation window: updates `1..WINDOW`
+/// are timed apart from the later ones.
+const WINDOW: u32 = 64;
+
 /// Turns of `asm::delay` in the calibration: `2 (n + 1)` instructions.
 const CALIBRATION_TURNS: u32 = 1_000_000;
 
@@ -264,8 +268,10 @@ fn run(line: &mut Line) -> bool {
         for (mode, est) in &modes {
             let mut est = est.clone();
             est.reset();
-            let mut step_ticks: u64 = 0;
-            let mut steps: u64 = 0;
+            // Ticks of the updates in the protocol's window (t = 1..=63,
+            // the gain schedule's when it is used) and of those after it.
+            let (mut window_ticks, mut window_steps) = (0u64, 0u64);
+            let (mut after_ticks, mut after_steps) = (0u64, 0u64);
             let mut last = None;
             for x in xs {
                 let before = SYST::get_current();
@@ -279,9 +285,13 @@ fn run(line: &mut Line) -> bool {
                     }
                 };
                 // The first step only encodes and sets the prior.
-                if out.t > 0 {
-                    step_ticks += u64::from(ticks(before, after));
-                    steps += 1;
+                let spent = u64::from(ticks(before, after));
+                if (1..WINDOW).contains(&out.t) {
+                    window_ticks += spent;
+                    window_steps += 1;
+                } else if out.t >= WINDOW {
+                    after_ticks += spent;
+                    after_steps += 1;
                 }
                 line.str("step ")
                     .uint(u64::from(*id))
@@ -307,8 +317,10 @@ fn run(line: &mut Line) -> bool {
                 line.str(" std=").dec(out.param_std[0]);
                 line.str(" sigma=").dec(out.sigma[0]);
                 line.str(" trust=").str(trust_word(out.trust));
-                line.str(" steps=").uint(steps);
-                line.str(" step_ticks=").uint(step_ticks);
+                line.str(" window_steps=").uint(window_steps);
+                line.str(" window_ticks=").uint(window_ticks);
+                line.str(" after_steps=").uint(after_steps);
+                line.str(" after_ticks=").uint(after_ticks);
                 line.str(" encode_ticks=")
                     .uint(u64::from(ticks(before, after)));
                 line.send();
