@@ -681,6 +681,72 @@ mod tests {
         }
     }
 
+    /// A small stable system: the latent block 0.9 I plus a small
+    /// asymmetric coupling, the parameters' columns arbitrary.
+    fn toy_f() -> Vec<f32> {
+        let mut f = vec![0.0f32; AUG_DIM * AUG_DIM];
+        for i in 0..LATENT_DIM {
+            for j in 0..LATENT_DIM {
+                f[i * AUG_DIM + j] = if i == j {
+                    0.9
+                } else {
+                    0.02 * ((i * 7 + j * 3) as f32).sin()
+                };
+            }
+            f[i * AUG_DIM + LATENT_DIM] = 0.1 * (i as f32).cos();
+            f[i * AUG_DIM + LATENT_DIM + 1] = 0.05;
+        }
+        for k in LATENT_DIM..AUG_DIM {
+            f[k * AUG_DIM + k] = 1.0;
+        }
+        f
+    }
+
+    fn toy_filter(steps: u16) -> FilterSpec {
+        let mut q = [0.01; AUG_DIM];
+        q[LATENT_DIM..].fill(0.0);
+        let mut prior_var = [0.01; AUG_DIM];
+        prior_var[LATENT_DIM] = 25.0;
+        prior_var[LATENT_DIM + 1] = 0.0;
+        FilterSpec {
+            q,
+            r: [0.02; LATENT_DIM],
+            prior_mean: [0.0; PARAM_DIM],
+            prior_var,
+            burn_in: 32,
+            sigma_threshold: 1.0,
+            schedule_steps: steps,
+        }
+    }
+
+    #[test]
+    fn gain_schedule_checks_its_two_stage_tail() {
+        let f = toy_f();
+        let (values, check) = gain_schedule(&f, &toy_filter(63)).unwrap();
+        assert_eq!(
+            values.len(),
+            63 * estimator::blob::SCHEDULE_STEP_LEN + TAIL_LEN
+        );
+        // Both forms in f64: agreement to rounding (1e-12 leaves 4 digits
+        // of room above f64's 2e-16 for 100 products).
+        assert!(check.two_stage_gap < 1e-12, "{check:?}");
+        assert!(check.bias_free_change < 1e-9, "{check:?}");
+        assert!(check.tail_std_gap < 1e-6, "{check:?}");
+        // Update 1's gain: with P' = F P0 F^T + Q, the length's gain
+        // row is (P'_py S^-1); its first entry must not be zero here.
+        assert!(values[LATENT_DIM] != 0.0);
+        // Two updates are too few for the bias-free gain to settle.
+        let err = gain_schedule(&f, &toy_filter(2)).unwrap_err().to_string();
+        assert!(err.contains("still changes"), "{err}");
+        // Parameters with process noise are not static.
+        let mut noisy = toy_filter(63);
+        noisy.q[LATENT_DIM] = 1e-4;
+        let err = gain_schedule(&f, &noisy).unwrap_err().to_string();
+        assert!(err.contains("process noise"), "{err}");
+        // No schedule: nothing to store.
+        assert!(gain_schedule(&f, &toy_filter(0)).unwrap().0.is_empty());
+    }
+
     #[test]
     fn linear_lands_input_major() {
         let (d_in, d_out, w, b) = linear_to_blob(&asymmetric_linear(2, 3));
