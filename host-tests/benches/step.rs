@@ -7,6 +7,9 @@
 //! - `estimator/encode`: [`Model::encode`] alone.
 //! - `estimator/filter`: [`Estimator::step_latent`] alone (the measurement
 //!   already encoded).
+//! - `estimator/step_tail`, `estimator/filter_tail`: the 64 steps after
+//!   the window (updates 64-127, the filter's two-stage form), each pass
+//!   from a copy of the filter after the window.
 //! - `estimator/step_recursive`, `estimator/filter_recursive`: the same
 //!   with [`Estimator::without_schedule`], the covariance recursion at
 //!   every update (what a step costs after the schedule's 63 updates).
@@ -67,6 +70,32 @@ fn bench(c: &mut Criterion) {
             est.reset();
             for z in &zs {
                 black_box(est.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    let all = host_tests::bench_rollout();
+    let after = &all[WINDOW..];
+    let zs_after: Vec<Latent> = after
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+    let mut warm = Estimator::new(&model);
+    for x in &xs {
+        warm.step(x).expect("window step");
+    }
+    g.bench_function("step_tail", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for x in after {
+                black_box(e.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("filter_tail", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for z in &zs_after {
+                black_box(e.step_latent(black_box(z)).ok());
             }
         })
     });
@@ -196,5 +225,8 @@ fn ratios() {
             println!("{what:<18} {a:>13.0} {b:>11.0} {:>16.1}", b / a);
         }
     }
-    println!("(rec.: without the gain schedule, the covariance recursion at every update)");
+    println!(
+        "(tail: updates 64-127, two-stage form; rec.: without the gain schedule, \
+         the covariance recursion at every update)"
+    );
 }

@@ -7,9 +7,10 @@
 //!     target/release/examples/steps step 1000
 //! ```
 //!
-//! The first argument picks what runs (`step`, `encode`, `filter`, and
-//! `step-recursive`, `filter-recursive` without the gain schedule), the
-//! second the repetitions. Instructions per step are callgrind's total
+//! The first argument picks what runs (`step`, `encode`, `filter`;
+//! `step-tail`, `filter-tail` over the 64 steps after the window, from a
+//! copy of the filter after it; `step-recursive`, `filter-recursive`
+//! without the gain schedule), the second the repetitions. Instructions per step are callgrind's total
 //! `Ir` divided by `64 * REPS`.
 
 use std::hint::black_box;
@@ -56,6 +57,22 @@ fn run_filter(model: &Model<'_>, zs: &[Latent], reps: usize, scheduled: bool) {
     }
 }
 
+#[inline(never)]
+fn run_tail(warm: &Estimator<'_>, xs: &[State], zs: &[Latent], reps: usize, encode: bool) {
+    for _ in 0..reps {
+        let mut est = warm.clone();
+        if encode {
+            for x in xs {
+                black_box(est.step(black_box(x)).ok());
+            }
+        } else {
+            for z in zs {
+                black_box(est.step_latent(black_box(z)).ok());
+            }
+        }
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let what = args.get(1).map_or("step", String::as_str);
@@ -67,7 +84,19 @@ fn main() {
         .iter()
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
+    let all = host_tests::bench_rollout();
+    let after = &all[xs.len()..];
+    let zs_after: Vec<Latent> = after
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+    let mut warm = Estimator::new(&model);
+    for x in &xs {
+        warm.step(x).expect("window step");
+    }
     match what {
+        "step-tail" => run_tail(&warm, after, &zs_after, reps, true),
+        "filter-tail" => run_tail(&warm, after, &zs_after, reps, false),
         "step" => run_step(&model, &xs, reps, true),
         "step-recursive" => run_step(&model, &xs, reps, false),
         "encode" => run_encode(&model, &xs, reps),
@@ -75,7 +104,8 @@ fn main() {
         "filter-recursive" => run_filter(&model, &zs, reps, false),
         other => {
             eprintln!(
-                "unknown mode {other}: step, encode, filter, step-recursive or filter-recursive"
+                "unknown mode {other}: step, encode, filter, step-tail, filter-tail, \
+                 step-recursive or filter-recursive"
             );
             std::process::exit(2);
         }

@@ -16,7 +16,7 @@ pub fn shipped_blob() -> Vec<u8> {
 
 /// The protocol's 64-step window of one test rollout (L = 3.5) that the
 /// benchmarks and the instruction counts step through.
-pub use trainer::bench::{WINDOW, window as bench_window};
+pub use trainer::bench::{WINDOW, whole_rollout as bench_rollout, window as bench_window};
 
 /// The independent f64 reference filter (it lives in the trainer, whose
 /// `koopman bench` measures it too).

@@ -513,6 +513,8 @@ fn bench_reports_ours_and_the_peers_per_step() {
         "peer_adskalman_filter_ns",
         "step_recursive_ns",
         "filter_recursive_ns",
+        "step_tail_ns",
+        "filter_tail_ns",
     ] {
         let ns = v[k]
             .as_f64()
@@ -541,6 +543,7 @@ fn bench_reports_ours_and_the_peers_per_step() {
         "burn forward",
         "f64 DMatrix filter",
         "without the gain schedule",
+        "after the window",
     ] {
         assert!(table.contains(row), "{row} missing from:\n{table}");
     }
