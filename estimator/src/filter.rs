@@ -442,7 +442,8 @@ impl<'m> Estimator<'m> {
         }
         let t = self.t.saturating_add(1);
         let (mut v, mut pb) = (self.v, self.pb);
-        let mut p = self.p;
+        // P only where the recursion runs here (it is 1296 bytes to copy).
+        let mut p: Option<Cov> = None;
         let tail = self.model.schedule_tail().filter(|_| self.scheduled);
         let (g, param_std) = match (tail, self.model.scheduled_gain(t)) {
             (Some(tail), Some((kt, std))) => {
@@ -465,9 +466,10 @@ impl<'m> Estimator<'m> {
                 (g, std)
             }
             (None, _) => {
-                let g;
-                (g, p) = self.predict_update(z)?;
-                (g, diag_std(&p))
+                let (g, new_p) = self.predict_update(z)?;
+                let std = diag_std(&new_p);
+                p = Some(new_p);
+                (g, std)
             }
         };
         let mut correction = [0.0; PARAM_DIM];
@@ -479,7 +481,9 @@ impl<'m> Estimator<'m> {
             *c = new - old;
         }
         self.g = g;
-        self.p = p;
+        if let Some(p) = p {
+            self.p = p;
+        }
         self.v = v;
         self.pb = pb;
         self.param_std = param_std;
@@ -546,7 +550,10 @@ impl<'m> Estimator<'m> {
                 }
             }
         }
-        let w: Sensitivity = u.map(|ua| combo(ua.iter().copied().zip(tail.si)));
+        let mut w: Sensitivity = [[0.0; LATENT_DIM]; PARAM_DIM];
+        for (wa, ua) in w.iter_mut().zip(&u) {
+            *wa = combo(ua.iter().copied().zip(tail.si));
+        }
         // M = I + P_b U^T W, and its inverse.
         let mut m = [[0.0f32; PARAM_DIM]; PARAM_DIM];
         for (a, (row, pba)) in m.iter_mut().zip(&self.pb).enumerate() {
@@ -560,11 +567,18 @@ impl<'m> Estimator<'m> {
         }
         let mi = inverse2(&m).ok_or(Error::FilterNotPositiveDefinite)?;
         // P_b W^T and P_b U^T, rows a; then K_b and K_b S~.
-        let pbw: Sensitivity = self.pb.map(|row| combo(row.iter().copied().zip(&w)));
-        let pbu: Sensitivity = self.pb.map(|row| combo(row.iter().copied().zip(&u)));
-        let kb: Sensitivity = mi.map(|row| combo(row.iter().copied().zip(&pbw)));
-        let kbs: Sensitivity = mi.map(|row| combo(row.iter().copied().zip(&pbu)));
-        let kb_nu = kb.map(|k| dot(&k, &nu));
+        let (mut pbw, mut pbu): (Sensitivity, Sensitivity) = Default::default();
+        for ((dw, du), row) in pbw.iter_mut().zip(pbu.iter_mut()).zip(&self.pb) {
+            *dw = combo(row.iter().copied().zip(&w));
+            *du = combo(row.iter().copied().zip(&u));
+        }
+        let (mut kb, mut kbs): (Sensitivity, Sensitivity) = Default::default();
+        let mut kb_nu = [0.0f32; PARAM_DIM];
+        for (((k, ks), knu), row) in kb.iter_mut().zip(kbs.iter_mut()).zip(&mut kb_nu).zip(&mi) {
+            *k = combo(row.iter().copied().zip(&pbw));
+            *ks = combo(row.iter().copied().zip(&pbu));
+            *knu = dot(k, &nu);
+        }
         // V = U - K~ U.
         let mut v = u;
         for (va, ua) in v.iter_mut().zip(&u) {
@@ -591,7 +605,10 @@ impl<'m> Estimator<'m> {
                 *d = f32::from(u8::from(a == b)) - dot(ka, ub);
             }
         }
-        let jp: ParamSquare = j.map(|row| combo(row.iter().copied().zip(&self.pb)));
+        let mut jp: ParamSquare = [[0.0; PARAM_DIM]; PARAM_DIM];
+        for (d, row) in jp.iter_mut().zip(&j) {
+            *d = combo(row.iter().copied().zip(&self.pb));
+        }
         let mut pb = [[0.0f32; PARAM_DIM]; PARAM_DIM];
         for (a, (row, (jpa, ksa))) in pb.iter_mut().zip(jp.iter().zip(&kbs)).enumerate() {
             for (b, (d, (jb, kb_b))) in row.iter_mut().zip(j.iter().zip(&kb)).enumerate() {

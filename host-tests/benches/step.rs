@@ -203,6 +203,17 @@ fn ratios() {
             ("estimator", "filter"),
             ("peer", "adskalman_filter"),
         ),
+        ("step, tail", ("estimator", "step_tail"), ("peer", "step")),
+        (
+            "filter, tail",
+            ("estimator", "filter_tail"),
+            ("peer", "f64_filter"),
+        ),
+        (
+            "filter, tail (ads)",
+            ("estimator", "filter_tail"),
+            ("peer", "adskalman_filter"),
+        ),
         (
             "step, rec.",
             ("estimator", "step_recursive"),
