@@ -73,20 +73,11 @@ fn bench(c: &mut Criterion) {
             }
         })
     });
-    let all = host_tests::bench_rollout();
-    let after = &all[WINDOW..];
-    let zs_after: Vec<Latent> = after
-        .iter()
-        .map(|x| model.encode(&model.normalise(x)))
-        .collect();
-    let mut warm = Estimator::new(&model);
-    for x in &xs {
-        warm.step(x).expect("window step");
-    }
+    let (after, zs_after, warm) = host_tests::bench_tail(&model);
     g.bench_function("step_tail", |b| {
         b.iter(|| {
             let mut e = warm.clone();
-            for x in after {
+            for x in &after {
                 black_box(e.step(black_box(x)).ok());
             }
         })

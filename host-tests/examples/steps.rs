@@ -84,19 +84,10 @@ fn main() {
         .iter()
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
-    let all = host_tests::bench_rollout();
-    let after = &all[xs.len()..];
-    let zs_after: Vec<Latent> = after
-        .iter()
-        .map(|x| model.encode(&model.normalise(x)))
-        .collect();
-    let mut warm = Estimator::new(&model);
-    for x in &xs {
-        warm.step(x).expect("window step");
-    }
+    let (after, zs_after, warm) = host_tests::bench_tail(&model);
     match what {
-        "step-tail" => run_tail(&warm, after, &zs_after, reps, true),
-        "filter-tail" => run_tail(&warm, after, &zs_after, reps, false),
+        "step-tail" => run_tail(&warm, &after, &zs_after, reps, true),
+        "filter-tail" => run_tail(&warm, &after, &zs_after, reps, false),
         "step" => run_step(&model, &xs, reps, true),
         "step-recursive" => run_step(&model, &xs, reps, false),
         "encode" => run_encode(&model, &xs, reps),
