@@ -46,14 +46,14 @@
 //! After the `T` steps comes the tail ([`TAIL_LEN`] values), which carries
 //! the filter on after update `T` in Friedland's two-stage form (exact for
 //! static parameters, `Q_p = 0`, which a blob with a schedule must have):
-//! a bias-free filter over `y` alone, whose gain `K~` has converged by
-//! update `T` (the exporter checks it) and is held, and a filter over the
-//! parameters with the sensitivity `V` of `y` to them. In order:
-//! `K~^T` ([`LATENT_DIM`] rows of [`LATENT_DIM`]), `S~^-1` (the bias-free
-//! innovation covariance's inverse, symmetric), `P~` (the bias-free
-//! covariance after an update, symmetric), `V_T` ([`PARAM_DIM`] columns of
-//! [`LATENT_DIM`]) and `P_b,T` (the parameters' covariance,
-//! [`PARAM_DIM`] squared, symmetric). See [`crate::filter`] for the
+//! a bias-free filter over `y` alone, whose gain `K~ = I - R S~^-1` has
+//! converged by update `T` (the exporter checks it) and is held, and a
+//! filter over the parameters with the sensitivity `V` of `y` to them. In
+//! order: `S~^-1` (the inverse of the bias-free innovation covariance,
+//! [`LATENT_DIM`] square, symmetric), `P~` (the bias-free covariance after
+//! an update, symmetric), `V_T` ([`PARAM_DIM`] columns of [`LATENT_DIM`])
+//! and `P_b,T` (the parameters' covariance, [`PARAM_DIM`] squared,
+//! symmetric). See [`crate::filter`] for the
 //! update. With `T = 0` there is no schedule and no tail.
 
 use serde::{Deserialize, Serialize};
@@ -194,9 +194,9 @@ pub const SCHEDULE_AT: usize = B_AT + AUG_DIM * INPUT_DIM;
 /// deviations.
 pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
 
-/// Values of the schedule's tail: `K~^T`, `S~^-1`, `P~`, `V_T`, `P_b,T`.
+/// Values of the schedule's tail: `S~^-1`, `P~`, `V_T`, `P_b,T`.
 pub const TAIL_LEN: usize =
-    3 * LATENT_DIM * LATENT_DIM + PARAM_DIM * LATENT_DIM + PARAM_DIM * PARAM_DIM;
+    2 * LATENT_DIM * LATENT_DIM + PARAM_DIM * LATENT_DIM + PARAM_DIM * PARAM_DIM;
 
 /// Length of the arena with a schedule of `steps` updates, in `f32`s: the
 /// weights, `steps` scheduled updates and, when `steps > 0`, the tail.
@@ -457,9 +457,9 @@ impl<'a> Blob<'a> {
         };
         let l2 = LATENT_DIM * LATENT_DIM;
         let tail_ok = tail.is_empty()
-            || (sym(l2, LATENT_DIM, false)
-                && sym(2 * l2, LATENT_DIM, true)
-                && sym(3 * l2 + PARAM_DIM * LATENT_DIM, PARAM_DIM, true));
+            || (sym(0, LATENT_DIM, false)
+                && sym(l2, LATENT_DIM, true)
+                && sym(2 * l2 + PARAM_DIM * LATENT_DIM, PARAM_DIM, true));
         if !(stds_ok && tail_ok) {
             return Err(Error::BlobNonFinite);
         }

@@ -34,7 +34,7 @@
 //!    exact for static parameters: a bias-free filter over `y` alone,
 //!    whose gain `K~` has converged by update `T` and is held, and a small
 //!    filter over `p` with the sensitivity `V` of `y` to `p` (see
-//!    `Estimator::two_stage_update`), about 2,600 multiply-adds;
+//!    `Estimator::two_stage_update`), about 2,100 multiply-adds;
 //! 3. [`Estimator::without_schedule`] runs the recursion above at every
 //!    update, about 15,300 multiply-adds: the reference path, and the one
 //!    for a blob without a schedule.
@@ -521,19 +521,21 @@ impl<'m> Estimator<'m> {
     }
 
     /// One update in two-stage form (after the schedule), leaving `self`
-    /// alone; returns the new mean, `V` and `P_b`. With the held
-    /// bias-free gain `K~` and `S~^-1` from the tail:
+    /// alone; returns the new mean, `V` and `P_b`. With `S~^-1` from the
+    /// tail and the held bias-free gain `K~ = I - R S~^-1` (never formed):
     /// `U = A V + B` (the sensitivity predicted), `W = S~^-1 U`,
     /// `K_b = (I + P_b U^T W)^-1 P_b W^T` (the parameters' gain, the
     /// push-through form of `P_b U^T (U P_b U^T + S~)^-1`),
-    /// `V = U - K~ U`; the mean moves by `K_y nu = K~ nu + V K_b nu` and
-    /// `p` by `K_b nu`; `P_b = J P_b J^T + K_b S~ K_b^T` with
+    /// `V = U - K~ U = R W`; the mean moves by
+    /// `K_y nu = K~ nu + V K_b nu = nu - R S~^-1 nu + V K_b nu` and `p` by
+    /// `K_b nu`; `P_b = J P_b J^T + K_b S~ K_b^T` with
     /// `J = I - K_b U` (Joseph's form) and `K_b S~ = (I + P_b U^T W)^-1 P_b U^T`.
     fn two_stage_update(
         &self,
         z: &Latent,
         tail: &Tail<'_>,
     ) -> Result<(Aug, Sensitivity, ParamSquare), Error> {
+        let spec = &self.model.blob().body.filter;
         let ct = self.model.koopman_columns();
         let y = combo(self.g.iter().copied().zip(ct));
         let mut nu = *z;
@@ -579,20 +581,19 @@ impl<'m> Estimator<'m> {
             *ks = combo(row.iter().copied().zip(&pbu));
             *knu = dot(k, &nu);
         }
-        // V = U - K~ U.
-        let mut v = u;
-        for (va, ua) in v.iter_mut().zip(&u) {
-            let ku = combo(ua.iter().copied().zip(tail.kt));
-            for (d, k) in va.iter_mut().zip(&ku) {
-                *d -= k;
+        // V = (I - K~) U = R W.
+        let mut v = w;
+        for va in v.iter_mut() {
+            for (d, r) in va.iter_mut().zip(&spec.r) {
+                *d *= r;
             }
         }
-        // The mean.
-        let dy = combo(nu.iter().copied().zip(tail.kt));
+        // The mean: y = y' + nu - R S~^-1 nu + V K_b nu = z - R S~^-1 nu + V K_b nu.
+        let sn = combo(nu.iter().copied().zip(tail.si));
         let vk = combo(kb_nu.iter().copied().zip(&v));
         let mut g = self.g;
-        for (((gi, yi), d), e) in g.iter_mut().zip(&y).zip(&dy).zip(&vk) {
-            *gi = yi + d + e;
+        for ((((gi, zi), r), s), e) in g.iter_mut().zip(z).zip(&spec.r).zip(&sn).zip(&vk) {
+            *gi = (zi - r * s) + e;
         }
         for (gi, d) in g.iter_mut().skip(LATENT_DIM).zip(&kb_nu) {
             *gi += d;

@@ -83,9 +83,8 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
 /// place: what the filter needs after update `T` in two-stage form.
 #[derive(Debug, Clone, Copy)]
 pub struct Tail<'a> {
-    /// `K~^T`: row `k` is column `k` of the held bias-free gain `K~`.
-    pub kt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
-    /// `S~^-1`, the inverse of the bias-free innovation covariance.
+    /// `S~^-1`, the inverse of the bias-free innovation covariance (the
+    /// held gain is `K~ = I - R S~^-1`).
     pub si: &'a [[f32; LATENT_DIM]; LATENT_DIM],
     /// `P~`, the bias-free covariance after an update.
     pub pt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
@@ -100,11 +99,10 @@ impl<'a> Tail<'a> {
     fn from_arena(a: &'a [f32], at: usize) -> Result<Self, Error> {
         let l2 = LATENT_DIM * LATENT_DIM;
         Ok(Tail {
-            kt: rows(a, at)?,
-            si: rows(a, at + l2)?,
-            pt: rows(a, at + 2 * l2)?,
-            v: rows(a, at + 3 * l2)?,
-            pb: rows(a, at + 3 * l2 + PARAM_DIM * LATENT_DIM)?,
+            si: rows(a, at)?,
+            pt: rows(a, at + l2)?,
+            v: rows(a, at + 2 * l2)?,
+            pb: rows(a, at + 2 * l2 + PARAM_DIM * LATENT_DIM)?,
         })
     }
 }

@@ -48,10 +48,10 @@ fn a_gain_schedule_that_does_not_fit_is_refused() {
     let m = Model::from_bytes(&bytes).unwrap();
     let t = m.schedule_steps() as usize;
     assert_eq!(t, 63, "the shipped blob covers the protocol's 63 updates");
-    // The tail: K~^T, S~^-1, P~ (16 x 16 each), V_T (2 x 16), P_b,T (2 x 2).
+    // The tail: S~^-1, P~ (16 x 16 each), V_T (2 x 16), P_b,T (2 x 2).
     let tail = SCHEDULE_AT + t * SCHEDULE_STEP_LEN;
     let l2 = LATENT_DIM * LATENT_DIM;
-    let pb = tail + 3 * l2 + PARAM_DIM * LATENT_DIM;
+    let pb = tail + 2 * l2 + PARAM_DIM * LATENT_DIM;
     // One update more than the arena holds.
     assert_eq!(
         edited(|_, f| f.schedule_steps += 1),
@@ -63,8 +63,8 @@ fn a_gain_schedule_that_does_not_fit_is_refused() {
         Error::BlobNonFinite
     );
     // S~^-1 not symmetric; P~ with a negative variance; P_b not symmetric.
-    assert_eq!(edited(|a, _| a[tail + l2 + 1] += 1.0), Error::BlobNonFinite);
-    assert_eq!(edited(|a, _| a[tail + 2 * l2] = -1.0), Error::BlobNonFinite);
+    assert_eq!(edited(|a, _| a[tail + 1] += 1.0), Error::BlobNonFinite);
+    assert_eq!(edited(|a, _| a[tail + l2] = -1.0), Error::BlobNonFinite);
     assert_eq!(edited(|a, _| a[pb + 1] += 1.0), Error::BlobNonFinite);
     // Process noise on the length.
     assert_eq!(

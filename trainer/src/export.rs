@@ -244,8 +244,8 @@ pub const TAIL_CHECK_STEPS: usize = 2000;
 
 /// The gain schedule of `filter.schedule_steps` updates for `F`
 /// (row-major), as the blob stores it (see `estimator::blob`): per update
-/// `K^T` and the parameters' standard deviations, then the tail: `K~^T`,
-/// `S~^-1`, `P~` of the converged bias-free filter, `V_T` and `P_b,T`.
+/// `K^T` and the parameters' standard deviations, then the tail: `S~^-1`
+/// and `P~` of the converged bias-free filter, `V_T` and `P_b,T`.
 ///
 /// Both forms of the filter run side by side in f64 and must agree at
 /// every update; the bias-free gain must have converged by the last
@@ -326,8 +326,7 @@ pub fn gain_schedule(f: &[f32], filter: &FilterSpec) -> Result<(Vec<f32>, Schedu
          a longer schedule is needed",
         check.bias_free_change
     );
-    // Row k of K~^T is column k of K~: nalgebra iterates column by column.
-    out.extend(tail.0.iter().map(|&v| v as f32));
+    // K~ = P~' S~^-1 = I - R S~^-1: the device needs S~^-1 only.
     let si = (tail.1 + tail.1.transpose()) * 0.5;
     out.extend(si.iter().map(|&v| v as f32)); // exactly symmetric
     out.extend(two.pt.iter().map(|&v| v as f32)); // symmetric
