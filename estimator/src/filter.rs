@@ -277,7 +277,7 @@ impl Spread {
 /// computed at export: see [`crate::blob`]), updates `1..=T` apply those
 /// gains and skip the covariance recursion: the same filter, for about a
 /// twenty-fifth of the arithmetic. From update `T + 1` on it runs in
-/// two-stage form from the blob's tail (about a sixth). See the module
+/// two-stage form from the blob's tail (about a seventh). See the module
 /// docs. [`Estimator::without_schedule`] runs the whole recursion at
 /// every update instead.
 #[derive(Debug, Clone)]
