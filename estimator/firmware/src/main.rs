@@ -1,7 +1,9 @@
 //! The estimator on a Cortex-M4F, in QEMU (`mps2-an386`, semihosting).
 //!
 //! Reads the shipped weights in place (`include_bytes!`), filters the test
-//! rollouts of `rollouts.csv` (embedded by `build.rs`) step by step, and
+//! rollouts of `rollouts.csv` (embedded by `build.rs`) step by step, each
+//! twice (as shipped: the blob's gain schedule, then the two-stage tail;
+//! and with `Estimator::without_schedule`), and
 //! prints every step's outputs as the hex bits of each `f32`, so that
 //! `host-tests/tests/firmware.rs` can compare them with the host's, then a
 //! readable summary per rollout.
