@@ -280,52 +280,53 @@ pub fn table(r: &BenchReport) -> String {
          {:<8} {:>13}   {:<22} {:>13}   {:>7}\n",
         r.batches, r.steps, "", "estimator", "peer", "peer", "ratio"
     );
-    s += &row("step", r.step_ns, "burn + f64 DMatrix", r.peer_step_ns);
-    s += &row(
-        "encoder",
-        r.encoder_ns,
-        "burn forward (flex)",
-        r.peer_burn_encoder_ns,
-    );
-    s += &row(
-        "filter",
-        r.filter_ns,
-        "f64 DMatrix filter",
-        r.peer_f64_filter_ns,
-    );
-    s += &row(
-        "filter",
-        r.filter_ns,
-        "adskalman (f32)",
-        r.peer_adskalman_filter_ns,
-    );
-    s += "after the window (updates 64-127, the filter's two-stage form):\n";
-    s += &row("step", r.step_tail_ns, "burn + f64 DMatrix", r.peer_step_ns);
-    s += &row(
-        "filter",
-        r.filter_tail_ns,
-        "f64 DMatrix filter",
-        r.peer_f64_filter_ns,
-    );
-    s += "without the gain schedule (the covariance recursion at every update):\n";
-    s += &row(
-        "step",
-        r.step_recursive_ns,
+    let (burn_f64, f64f, ads) = (
         "burn + f64 DMatrix",
-        r.peer_step_ns,
-    );
-    s += &row(
-        "filter",
-        r.filter_recursive_ns,
         "f64 DMatrix filter",
-        r.peer_f64_filter_ns,
-    );
-    s += &row(
-        "filter",
-        r.filter_recursive_ns,
         "adskalman (f32)",
-        r.peer_adskalman_filter_ns,
     );
+    let sections = [
+        (
+            "",
+            vec![
+                ("step", r.step_ns, burn_f64, r.peer_step_ns),
+                (
+                    "encoder",
+                    r.encoder_ns,
+                    "burn forward (flex)",
+                    r.peer_burn_encoder_ns,
+                ),
+                ("filter", r.filter_ns, f64f, r.peer_f64_filter_ns),
+                ("filter", r.filter_ns, ads, r.peer_adskalman_filter_ns),
+            ],
+        ),
+        (
+            "after the window (updates 64-127, the filter's two-stage form):\n",
+            vec![
+                ("step", r.step_tail_ns, burn_f64, r.peer_step_ns),
+                ("filter", r.filter_tail_ns, f64f, r.peer_f64_filter_ns),
+            ],
+        ),
+        (
+            "without the gain schedule (the covariance recursion at every update):\n",
+            vec![
+                ("step", r.step_recursive_ns, burn_f64, r.peer_step_ns),
+                ("filter", r.filter_recursive_ns, f64f, r.peer_f64_filter_ns),
+                (
+                    "filter",
+                    r.filter_recursive_ns,
+                    ads,
+                    r.peer_adskalman_filter_ns,
+                ),
+            ],
+        ),
+    ];
+    for (title, rows) in sections {
+        s += title;
+        for (name, ours, peer_name, peer) in rows {
+            s += &row(name, ours, peer_name, peer);
+        }
+    }
     s
 }
 
