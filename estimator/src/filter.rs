@@ -74,6 +74,13 @@ fn tail(r: &[f32; AUG_DIM]) -> &[f32; PARAM_DIM] {
     r.last_chunk::<PARAM_DIM>().unwrap_or(&[0.0; PARAM_DIM])
 }
 
+/// Whether every value is finite, in one pass without early exit (so it
+/// vectorises).
+#[inline(always)]
+fn all_finite(r: &[f32]) -> bool {
+    r.iter().fold(true, |ok, v| ok & v.is_finite())
+}
+
 #[inline(always)]
 fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
     a.iter().zip(b).fold(0.0, |acc, (x, y)| acc + x * y)
@@ -434,7 +441,7 @@ impl<'m> Estimator<'m> {
             }
             self.g = g;
             self.p = p;
-            self.param_std = diag_std(&p);
+            self.param_std = sqrt_diag(&p, LATENT_DIM);
             self.t = 0;
             self.started = true;
             self.spread = Spread::default();
@@ -458,16 +465,11 @@ impl<'m> Estimator<'m> {
             (Some(tail), None) => {
                 let g;
                 (g, v, pb) = self.two_stage_update(z, tail)?;
-                let mut std = [0.0; PARAM_DIM];
-                for (k, s) in std.iter_mut().enumerate() {
-                    let d = pb.get(k).and_then(|r| r.get(k)).copied().unwrap_or(0.0);
-                    *s = libm::sqrtf(d.max(0.0));
-                }
-                (g, std)
+                (g, sqrt_diag(&pb, 0))
             }
             (None, _) => {
                 let (g, new_p) = self.predict_update(z)?;
-                let std = diag_std(&new_p);
+                let std = sqrt_diag(&new_p, LATENT_DIM);
                 p = Some(new_p);
                 (g, std)
             }
@@ -494,6 +496,18 @@ impl<'m> Estimator<'m> {
         Ok(self.output(correction))
     }
 
+    /// The predicted latent `y' = C g = sum_k g_k C^T_k` and the innovation
+    /// `nu = z - y'`: how every update starts.
+    #[inline(always)]
+    fn predict_latent(&self, z: &Latent) -> (Latent, Latent) {
+        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        (y, nu)
+    }
+
     /// One update with a precomputed gain `K` (given as `K^T`, row `k` for
     /// innovation `k`): `g' = F g`, `nu = z - y'`, `g = g' + K nu`. Leaves
     /// `self` alone.
@@ -502,18 +516,13 @@ impl<'m> Estimator<'m> {
         z: &Latent,
         kt: &[[f32; AUG_DIM]; LATENT_DIM],
     ) -> Result<Aug, Error> {
-        let ct = self.model.koopman_columns();
-        let y = combo(self.g.iter().copied().zip(ct));
-        let mut nu = *z;
-        for (v, yi) in nu.iter_mut().zip(&y) {
-            *v -= yi;
-        }
+        let (y, nu) = self.predict_latent(z);
         let dg = combo(nu.iter().copied().zip(kt));
         let mut g = self.g;
         for ((gi, pred), d) in g.iter_mut().zip(y.iter().chain(tail(&self.g))).zip(&dg) {
             *gi = pred + d;
         }
-        if g.iter().fold(true, |ok, v| ok & v.is_finite()) {
+        if all_finite(&g) {
             Ok(g)
         } else {
             Err(Error::FilterNonFinite)
@@ -537,11 +546,7 @@ impl<'m> Estimator<'m> {
     ) -> Result<(Aug, Sensitivity, ParamSquare), Error> {
         let spec = &self.model.blob().body.filter;
         let ct = self.model.koopman_columns();
-        let y = combo(self.g.iter().copied().zip(ct));
-        let mut nu = *z;
-        for (v, yi) in nu.iter_mut().zip(&y) {
-            *v -= yi;
-        }
+        let (_, nu) = self.predict_latent(z);
         // U_a = sum_k V_a[k] A^T_k + B^T_a (rows of C^T: A's columns, then B's).
         let mut u: Sensitivity = [[0.0; LATENT_DIM]; PARAM_DIM];
         for (a, (ua, va)) in u.iter_mut().zip(&self.v).enumerate() {
@@ -619,10 +624,9 @@ impl<'m> Estimator<'m> {
             }
         }
         mirror_upper(&mut pb);
-        let finite = |r: &[f32]| r.iter().fold(true, |ok, x| ok & x.is_finite());
-        let ok = finite(&g)
-            && v.iter().all(|c| finite(c))
-            && pb.iter().all(|r| finite(r))
+        let ok = all_finite(&g)
+            && v.iter().all(|c| all_finite(c))
+            && pb.iter().all(|r| all_finite(r))
             && pb
                 .iter()
                 .enumerate()
@@ -644,9 +648,9 @@ impl<'m> Estimator<'m> {
         let c = self.model.koopman_rows();
         let ct = self.model.koopman_columns();
 
-        // Predict the mean: y' = C g = sum_k g_k C^T_k;  p' = p.
+        // Predict the mean: y' = C g;  p' = p.
         let mut g = self.g;
-        let y = combo(self.g.iter().copied().zip(ct));
+        let (y, nu) = self.predict_latent(z);
         for (gi, yi) in g.iter_mut().zip(&y) {
             *gi = *yi;
         }
@@ -705,10 +709,6 @@ impl<'m> Estimator<'m> {
         // With the optimal gain K = P' H^T Si no K is formed:
         // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
         // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
-        let mut nu = *z;
-        for (v, yi) in nu.iter_mut().zip(&y) {
-            *v -= yi;
-        }
         let w = combo(nu.iter().copied().zip(&si));
         // M^T, row a = sum_k P'_yp[k][a] Si_k.
         let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
@@ -809,10 +809,8 @@ impl<'m> Estimator<'m> {
             }
         }
 
-        // One pass without early exit (vectorises): is anything NaN or
-        // infinite?
-        let finite_row = |r: &[f32; AUG_DIM]| r.iter().fold(true, |ok, v| ok & v.is_finite());
-        let finite = p.iter().fold(finite_row(&g), |ok, r| ok & finite_row(r));
+        // Is anything NaN or infinite?
+        let finite = p.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
         if finite {
             Ok((g, p))
         } else {
@@ -861,13 +859,15 @@ fn inverse2(m: &ParamSquare) -> Option<ParamSquare> {
     Some([[d * inv, -b * inv], [-c * inv, a * inv]])
 }
 
-/// `sqrt(diag P_pp)`.
-fn diag_std(p: &Cov) -> [f32; PARAM_DIM] {
+/// The parameters' standard deviations: the square roots of the
+/// [`PARAM_DIM`] diagonal entries of `m` from `(from, from)` (`P` with
+/// `from = LATENT_DIM`, `P_b` with 0).
+fn sqrt_diag<const N: usize>(m: &[[f32; N]; N], from: usize) -> [f32; PARAM_DIM] {
     let mut s = [0.0; PARAM_DIM];
     for (k, s) in s.iter_mut().enumerate() {
-        let v = p
-            .get(LATENT_DIM + k)
-            .and_then(|row| row.get(LATENT_DIM + k))
+        let v = m
+            .get(from + k)
+            .and_then(|row| row.get(from + k))
             .copied()
             .unwrap_or(0.0);
         *s = libm::sqrtf(v.max(0.0));

@@ -81,10 +81,10 @@ impl BlobParts {
 
     /// `F` (row-major) as stored in the arena.
     fn f(&self) -> Vec<f32> {
-        let at = estimator::blob::F_AT * 4;
-        self.arena[at..at + AUG_DIM * AUG_DIM * 4]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        F32s(&self.arena)
+            .iter()
+            .skip(estimator::blob::F_AT)
+            .take(AUG_DIM * AUG_DIM)
             .collect()
     }
 
@@ -128,7 +128,8 @@ type Cols64 = SMatrix<f64, LATENT_DIM, PARAM_DIM>;
 type Par64 = SMatrix<f64, PARAM_DIM, PARAM_DIM>;
 
 /// The textbook filter's covariance recursion in f64 (the exporter's own,
-/// independent of the estimator's): `P' = F P F^T + Q`,
+/// independent of the estimator's and of `crate::reference`, which the
+/// tests hold the scheduled estimator to): `P' = F P F^T + Q`,
 /// `S = H P' H^T + R` (Cholesky), `K = P' H^T S^-1`, and Joseph's
 /// `P = (I - K H) P' (I - K H)^T + K R K^T`, made exactly symmetric.
 struct Full {
