@@ -538,7 +538,11 @@ impl<'m> Estimator<'m> {
     /// `V = U - K~ U = R W`; the mean moves by
     /// `K_y nu = K~ nu + V K_b nu = nu - R S~^-1 nu + V K_b nu` and `p` by
     /// `K_b nu`; `P_b = J P_b J^T + K_b S~ K_b^T` with
-    /// `J = I - K_b U` (Joseph's form) and `K_b S~ = (I + P_b U^T W)^-1 P_b U^T`.
+    /// `J = I - K_b U` (Joseph's form). `K_b` is never formed either: with
+    /// `X = U^T W` and `N = (I + P_b X)^-1 P_b`, `K_b = N W^T`, so
+    /// `K_b nu = N (W^T nu)`, `K_b U = N X^T` and `K_b S~ K_b^T = N X N^T`;
+    /// past `U` and `W` the update is six sums over the latent and 2x2
+    /// algebra.
     fn two_stage_update(
         &self,
         z: &Latent,
@@ -561,31 +565,34 @@ impl<'m> Estimator<'m> {
         for (wa, ua) in w.iter_mut().zip(&u) {
             *wa = combo(ua.iter().copied().zip(tail.si));
         }
-        // M = I + P_b U^T W, and its inverse.
-        let mut m = [[0.0f32; PARAM_DIM]; PARAM_DIM];
-        for (a, (row, pba)) in m.iter_mut().zip(&self.pb).enumerate() {
-            for (b, (d, wb)) in row.iter_mut().zip(&w).enumerate() {
-                let uw = |c: usize| u.get(c).map_or(0.0, |uc| dot(uc, wb));
-                *d = pba
-                    .iter()
-                    .enumerate()
-                    .fold(f32::from(u8::from(a == b)), |acc, (c, p)| acc + p * uw(c));
+        // Everything else the update needs of U and W is six sums over the
+        // latent, taken side by side: X = U^T W and c = W^T nu.
+        let ([u0, u1], [w0, w1]) = (&u, &w);
+        let mut x = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        let mut c = [0.0f32; PARAM_DIM];
+        for ((((a0, a1), b0), b1), n) in u0.iter().zip(u1).zip(w0).zip(w1).zip(&nu) {
+            let [[x00, x01], [x10, x11]] = &mut x;
+            let [c0, c1] = &mut c;
+            *x00 += a0 * b0;
+            *x01 += a0 * b1;
+            *x10 += a1 * b0;
+            *x11 += a1 * b1;
+            *c0 += b0 * n;
+            *c1 += b1 * n;
+        }
+        // K_b = N W^T with N = (I + P_b X)^-1 P_b, so K_b nu = N c,
+        // K_b U = N X^T and K_b S~ K_b^T = N X N^T: 2x2 algebra only.
+        let mut m = mul2(&self.pb, &x);
+        for (a, row) in m.iter_mut().enumerate() {
+            if let Some(d) = row.get_mut(a) {
+                *d += 1.0;
             }
         }
         let mi = inverse2(&m).ok_or(Error::FilterNotPositiveDefinite)?;
-        // P_b W^T and P_b U^T, rows a; then K_b and K_b S~.
-        let (mut pbw, mut pbu): (Sensitivity, Sensitivity) = Default::default();
-        for ((dw, du), row) in pbw.iter_mut().zip(pbu.iter_mut()).zip(&self.pb) {
-            *dw = combo(row.iter().copied().zip(&w));
-            *du = combo(row.iter().copied().zip(&u));
-        }
-        let (mut kb, mut kbs): (Sensitivity, Sensitivity) = Default::default();
-        let mut kb_nu = [0.0f32; PARAM_DIM];
-        for (((k, ks), knu), row) in kb.iter_mut().zip(kbs.iter_mut()).zip(&mut kb_nu).zip(&mi) {
-            *k = combo(row.iter().copied().zip(&pbw));
-            *ks = combo(row.iter().copied().zip(&pbu));
-            *knu = dot(k, &nu);
-        }
+        let n = mul2(&mi, &self.pb);
+        let [[n00, n01], [n10, n11]] = n;
+        let [c0, c1] = c;
+        let kb_nu = [n00 * c0 + n01 * c1, n10 * c0 + n11 * c1];
         // V = (I - K~) U = R W.
         let mut v = w;
         for va in v.iter_mut() {
@@ -603,27 +610,16 @@ impl<'m> Estimator<'m> {
         for (gi, d) in g.iter_mut().skip(LATENT_DIM).zip(&kb_nu) {
             *gi += d;
         }
-        // P_b = J P_b J^T + K_b S~ K_b^T, J = I - K_b U; upper triangle,
-        // then mirrored.
-        let mut j = [[0.0f32; PARAM_DIM]; PARAM_DIM];
-        for (a, (row, ka)) in j.iter_mut().zip(&kb).enumerate() {
-            for (b, (d, ub)) in row.iter_mut().zip(&u).enumerate() {
-                *d = f32::from(u8::from(a == b)) - dot(ka, ub);
-            }
-        }
-        let mut jp: ParamSquare = [[0.0; PARAM_DIM]; PARAM_DIM];
-        for (d, row) in jp.iter_mut().zip(&j) {
-            *d = combo(row.iter().copied().zip(&self.pb));
-        }
-        let mut pb = [[0.0f32; PARAM_DIM]; PARAM_DIM];
-        for (a, (row, (jpa, ksa))) in pb.iter_mut().zip(jp.iter().zip(&kbs)).enumerate() {
-            for (b, (d, (jb, kb_b))) in row.iter_mut().zip(j.iter().zip(&kb)).enumerate() {
-                if b >= a {
-                    *d = dot(jpa, jb) + dot(ksa, kb_b);
-                }
-            }
-        }
-        mirror_upper(&mut pb);
+        // P_b = J P_b J^T + K_b S~ K_b^T with J = I - K_b U = I - N X^T,
+        // then made exactly symmetric from its upper triangle.
+        let [[k00, k01], [k10, k11]] = mul2(&n, &transpose2(&x));
+        let j = [[1.0 - k00, -k01], [-k10, 1.0 - k11]];
+        let jpj = mul2(&mul2(&j, &self.pb), &transpose2(&j));
+        let nxn = mul2(&mul2(&n, &x), &transpose2(&n));
+        let [[a00, a01], [_, a11]] = jpj;
+        let [[b00, b01], [_, b11]] = nxn;
+        let (p01, p00, p11) = (a01 + b01, a00 + b00, a11 + b11);
+        let pb = [[p00, p01], [p01, p11]];
         let ok = all_finite(&g)
             && v.iter().all(|c| all_finite(c))
             && pb.iter().all(|r| all_finite(r))
@@ -857,6 +853,25 @@ fn inverse2(m: &ParamSquare) -> Option<ParamSquare> {
     }
     let inv = 1.0 / det;
     Some([[d * inv, -b * inv], [-c * inv, a * inv]])
+}
+
+/// `a b` for [`PARAM_DIM`] square matrices.
+#[inline(always)]
+fn mul2(a: &ParamSquare, b: &ParamSquare) -> ParamSquare {
+    const _: () = assert!(PARAM_DIM == 2);
+    let [[a00, a01], [a10, a11]] = *a;
+    let [[b00, b01], [b10, b11]] = *b;
+    [
+        [a00 * b00 + a01 * b10, a00 * b01 + a01 * b11],
+        [a10 * b00 + a11 * b10, a10 * b01 + a11 * b11],
+    ]
+}
+
+/// `a^T` for a [`PARAM_DIM`] square matrix.
+#[inline(always)]
+fn transpose2(a: &ParamSquare) -> ParamSquare {
+    let [[a00, a01], [a10, a11]] = *a;
+    [[a00, a10], [a01, a11]]
 }
 
 /// The parameters' standard deviations: the square roots of the
