@@ -34,7 +34,7 @@
 //!    exact for static parameters: a bias-free filter over `y` alone,
 //!    whose gain `K~` has converged by update `T` and is held, and a small
 //!    filter over `p` with the sensitivity `V` of `y` to `p` (see
-//!    `Estimator::two_stage_update`), about 2,100 multiply-adds;
+//!    `Estimator::two_stage_update`), about 1,750 multiply-adds;
 //! 3. [`Estimator::without_schedule`] runs the recursion above at every
 //!    update, about 15,300 multiply-adds: the reference path, and the one
 //!    for a blob without a schedule.

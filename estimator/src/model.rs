@@ -154,7 +154,9 @@ fn dense<const I: usize, const O: usize, const B: usize>(
     // Without a branch on the value: which inputs a ReLU zeroed is data,
     // and a mispredicted branch per input would cost more than the copy.
     for (xj, wj) in x.iter().zip(w) {
-        if let (Some(xd), Some(wd)) = (xs.get_mut(n), ws.get_mut(n)) {
+        // `n` counts the inputs before this one, so `n % I == n`; the
+        // remainder shows the compiler that the index is in bounds.
+        if let (Some(xd), Some(wd)) = (xs.get_mut(n % I), ws.get_mut(n % I)) {
             *xd = *xj;
             *wd = wj;
         }
