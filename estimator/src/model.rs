@@ -133,12 +133,44 @@ fn activate(v: f32, act: Option<Activation>) -> f32 {
     }
 }
 
+/// Whether [`dense`] gathers the inputs that are not zero before it sums,
+/// for a layer of `blocks` output blocks. The gather costs about as much as
+/// one block's sum over the inputs it drops, so it pays for several
+/// blocks. On x86-64 a single block (the encoder's last layer) sums every
+/// input; on the Cortex-M4F, whose loads and stores are cheaper against its
+/// one multiply-add per instruction, gathering pays even then.
+#[inline(always)]
+const fn gathers(blocks: usize) -> bool {
+    blocks > 1 || !cfg!(target_arch = "x86_64")
+}
+
+/// The `B` outputs from `at` of `sum_j x_j W_j` over `terms`, in their
+/// order: one block load per term (a `vldm` on a Cortex-M4F), then `B`
+/// multiply-accumulates.
+#[inline(always)]
+fn block<'w, const O: usize, const B: usize>(
+    terms: impl Iterator<Item = (&'w f32, &'w [f32; O])>,
+    at: usize,
+) -> [f32; B] {
+    let mut acc = [0.0f32; B];
+    for (xj, wj) in terms {
+        if let Some(wb) = wj.get(at..).and_then(|r| r.first_chunk::<B>()) {
+            let wv = *wb;
+            for (a, wv) in acc.iter_mut().zip(wv) {
+                *a += xj * wv;
+            }
+        }
+    }
+    acc
+}
+
 /// `out = act(x W + b)` with `W` input-major (`w[j]`: input `j`'s
 /// weights), computed `B` outputs at a time as a sum of scaled rows:
 /// `out = sum_j x_j W_j + b` over the inputs that are not zero (after a
-/// ReLU about half are), in the order of `j`, then the bias. Skipping a
-/// zero input changes no bit of the result; the order is fixed, so every
-/// target computes the same bits. `B` divides `O`.
+/// ReLU about half are; see [`gathers`]), in the order of `j`, then the
+/// bias. Skipping a zero input changes no bit of the result (the sums
+/// start at `+0`, so adding `+-0` leaves them as they are); the order is
+/// fixed, so every target computes the same bits. `B` divides `O`.
 #[inline]
 fn dense<const I: usize, const O: usize, const B: usize>(
     w: &[[f32; O]; I],
@@ -147,6 +179,17 @@ fn dense<const I: usize, const O: usize, const B: usize>(
     out: &mut [f32; O],
     act: Option<Activation>,
 ) {
+    let (outs, _) = out.as_chunks_mut::<B>();
+    let (bias, _) = b.as_chunks::<B>();
+    if !gathers(O / B) {
+        for (k, (ob, bb)) in outs.iter_mut().zip(bias).enumerate() {
+            let acc = block::<O, B>(x.iter().zip(w), k * B);
+            for ((o, a), bv) in ob.iter_mut().zip(&acc).zip(bb) {
+                *o = activate(a + bv, act);
+            }
+        }
+        return;
+    }
     // The inputs that are not zero, with their weight rows.
     let mut xs = [0.0f32; I];
     let mut ws: [&[f32; O]; I] = [&[0.0; O]; I];
@@ -164,21 +207,8 @@ fn dense<const I: usize, const O: usize, const B: usize>(
     }
     let xs = xs.get(..n).unwrap_or(&[]);
     let ws = ws.get(..n).unwrap_or(&[]);
-    let (outs, _) = out.as_chunks_mut::<B>();
-    let (bias, _) = b.as_chunks::<B>();
     for (k, (ob, bb)) in outs.iter_mut().zip(bias).enumerate() {
-        let at = k * B;
-        let mut acc = [0.0f32; B];
-        for (xj, wj) in xs.iter().zip(ws) {
-            if let Some(wb) = wj.get(at..).and_then(|r| r.first_chunk::<B>()) {
-                // One block load (a `vldm` on a Cortex-M4F), then B
-                // multiply-accumulates.
-                let wv = *wb;
-                for (a, wv) in acc.iter_mut().zip(wv) {
-                    *a += xj * wv;
-                }
-            }
-        }
+        let acc = block::<O, B>(xs.iter().zip(ws.iter().copied()), k * B);
         for ((o, a), bv) in ob.iter_mut().zip(&acc).zip(bb) {
             *o = activate(a + bv, act);
         }
