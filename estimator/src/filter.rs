@@ -618,8 +618,8 @@ impl<'m> Estimator<'m> {
         let nxn = mul2(&mul2(&n, &x), &transpose2(&n));
         let [[a00, a01], [_, a11]] = jpj;
         let [[b00, b01], [_, b11]] = nxn;
-        let (p01, p00, p11) = (a01 + b01, a00 + b00, a11 + b11);
-        let pb = [[p00, p01], [p01, p11]];
+        let p01 = a01 + b01;
+        let pb = [[a00 + b00, p01], [p01, a11 + b11]];
         let ok = all_finite(&g)
             && v.iter().all(|c| all_finite(c))
             && pb.iter().all(|r| all_finite(r))

@@ -17,31 +17,13 @@ pub fn shipped_blob() -> Vec<u8> {
 
 /// The protocol's 64-step window of one test rollout (L = 3.5) that the
 /// benchmarks and the instruction counts step through.
-pub use trainer::bench::{WINDOW, whole_rollout as bench_rollout, window as bench_window};
+pub use trainer::bench::{WINDOW, window as bench_window};
+
+/// What the benchmarks of the steps after the window start from: the 64
+/// raw states after [`bench_window`], the same encoded, and the filter (on
+/// the blob's gain schedule) after the window.
+pub use trainer::bench::tail as bench_tail;
 
 /// The independent f64 reference filter (it lives in the trainer, whose
 /// `koopman bench` measures it too).
 pub use trainer::reference;
-
-/// What the benchmarks of the steps after the window start from: the 64
-/// raw states after [`bench_window`], the same encoded, and the filter
-/// (on the blob's gain schedule) after the window.
-pub fn bench_tail<'m>(
-    model: &'m estimator::Model<'m>,
-) -> (
-    Vec<estimator::State>,
-    Vec<estimator::Latent>,
-    estimator::Estimator<'m>,
-) {
-    let all = bench_rollout();
-    let (window, after) = all.split_at(WINDOW.min(all.len()));
-    let zs = after
-        .iter()
-        .map(|x| model.encode(&model.normalise(x)))
-        .collect();
-    let mut warm = estimator::Estimator::new(model);
-    for x in window {
-        warm.step(x).expect("window step");
-    }
-    (after.to_vec(), zs, warm)
-}
