@@ -20,7 +20,7 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
-//! # The arena (format version 3)
+//! # The arena (format version 4)
 //! In order, with the sizes of [`ENCODER_SHAPES`] and [`DECODER_SHAPES`]:
 //! for each encoder layer then each decoder layer, its weight `W` then its
 //! bias `b`; then `F` ([`AUG_DIM`] x [`AUG_DIM`], row-major), then `B`
@@ -63,7 +63,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 3;
+pub const FORMAT_VERSION: u16 = 4;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -231,6 +231,26 @@ pub const fn layer_span(net: Net, k: usize) -> Option<(usize, usize, usize)> {
 #[derive(Debug)]
 pub struct Aligned<T: ?Sized>(pub T);
 
+/// How the filter's coordinate `q` of a parameter reads as the parameter's
+/// value `p`.
+///
+/// The model is trained with `q = p` at both ends of the training range
+/// `[lo, hi]`; between and beyond them, the value of `q` that the latent
+/// dynamics line up with is whatever the physics makes linear. A pendulum's
+/// length enters its dynamics as `3 g / (2 L)`, so the learned linear
+/// model, which interpolates the dynamics, is affine in `1 / L`:
+/// [`Reading::Reciprocal`].
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reading {
+    /// `p = q`.
+    Direct,
+    /// `q = lo + hi - lo hi / p`, affine in `1 / p` and equal to `p` at
+    /// `lo` and `hi`; so `p = lo hi / (lo + hi - q)`. Needs `0 < lo`.
+    /// `q` at or above `lo + hi` reads as an infinite or negative value,
+    /// reported as it is.
+    Reciprocal,
+}
+
 /// One physical parameter carried in the filter state.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct ParamSpec<'a> {
@@ -241,6 +261,61 @@ pub struct ParamSpec<'a> {
     pub declared: bool,
     /// The range it was trained on, `[lo, hi]`.
     pub train_range: [f32; 2],
+    /// How the filter's coordinate reads as the parameter.
+    pub reading: Reading,
+}
+
+impl ParamSpec<'_> {
+    /// The parameter's value at the filter's coordinate `q`.
+    #[inline]
+    pub fn read(&self, q: f32) -> f32 {
+        match self.reading {
+            Reading::Direct => q,
+            Reading::Reciprocal => {
+                let [lo, hi] = self.train_range;
+                lo * hi / (lo + hi - q)
+            }
+        }
+    }
+
+    /// `dp/dq` at the filter's coordinate `q`: what turns the coordinate's
+    /// standard deviation into the parameter's (to first order).
+    #[inline]
+    pub fn slope(&self, q: f32) -> f32 {
+        match self.reading {
+            Reading::Direct => 1.0,
+            Reading::Reciprocal => {
+                let [lo, hi] = self.train_range;
+                let d = lo + hi - q;
+                lo * hi / (d * d)
+            }
+        }
+    }
+
+    /// The filter's coordinate of the value `p` (the inverse of
+    /// [`ParamSpec::read`]); not finite for `p = 0` with a reciprocal
+    /// reading.
+    #[inline]
+    pub fn coordinate(&self, p: f32) -> f32 {
+        match self.reading {
+            Reading::Direct => p,
+            Reading::Reciprocal => {
+                let [lo, hi] = self.train_range;
+                lo + hi - lo * hi / p
+            }
+        }
+    }
+
+    fn check(&self) -> Result<(), Error> {
+        let [lo, hi] = self.train_range;
+        if !(lo.is_finite() && hi.is_finite()) {
+            return Err(Error::BlobNonFinite);
+        }
+        match self.reading {
+            Reading::Reciprocal if !(lo > 0.0 && lo <= hi) => Err(Error::BlobBadReading),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// The Kalman filter's settings. `Q` and `R` are diagonal.
@@ -436,8 +511,8 @@ impl<'a> Blob<'a> {
         if !param_rows_identity {
             return Err(Error::BlobParamsNotStatic);
         }
-        if !b.params.iter().all(|p| finite(&p.train_range)) {
-            return Err(Error::BlobNonFinite);
+        for p in &b.params {
+            p.check()?;
         }
         // A schedule needs static parameters; its standard deviations are
         // not negative, and the tail's covariances are symmetric with

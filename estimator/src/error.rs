@@ -30,6 +30,9 @@ pub enum Error {
     /// The rows of `F` for the parameters are not the identity: the blob
     /// does not keep the parameters static, which the filter relies on.
     BlobParamsNotStatic,
+    /// A parameter's reading ([`crate::blob::Reading`]) is not defined on
+    /// its training range (a reciprocal reading needs `0 < lo <= hi`).
+    BlobBadReading,
     /// The blob's weights do not lie at a 4-byte aligned address (keep the
     /// blob in a buffer aligned to 4, e.g. [`crate::blob::Aligned`]), or
     /// its padding is not what the format writes.
@@ -60,6 +63,7 @@ impl Error {
             Error::BlobTrailingBytes => "blob: trailing bytes after the end",
             Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
             Error::BlobParamsNotStatic => "blob: F does not keep the parameters static",
+            Error::BlobBadReading => "blob: a parameter's reading is undefined on its range",
             Error::BlobMisaligned => "blob: weights not 4-byte aligned in memory",
             Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
             Error::FilterNotPositiveDefinite => {

@@ -236,14 +236,22 @@ pub enum Trust {
 pub struct StepOutput {
     /// Index of the measurement just consumed (0 for the first).
     pub t: u32,
-    /// Parameter estimates (the `p` part of the mean).
+    /// Parameter estimates: the filter's coordinates read through each
+    /// parameter's [`Reading`](crate::blob::Reading).
     pub params: [f32; PARAM_DIM],
-    /// Their standard deviations, `sqrt(diag P)`.
+    /// Their standard deviations, to first order: `|dp/dq|` times the
+    /// coordinate's.
     pub param_std: [f32; PARAM_DIM],
-    /// The correction this step made to each parameter.
+    /// The filter's coordinates `q` of the parameters (the `p` part of the
+    /// mean; equal to `params` at both ends of their training ranges).
+    pub coordinate: [f32; PARAM_DIM],
+    /// Their standard deviations, `sqrt(diag P)`.
+    pub coordinate_std: [f32; PARAM_DIM],
+    /// The correction this step made to each coordinate.
     pub correction: [f32; PARAM_DIM],
     /// Population standard deviation of the corrections made at
-    /// `t >= burn_in` so far (0 before there are any).
+    /// `t >= burn_in` so far (0 before there are any), in the coordinates:
+    /// what the trust verdict is calibrated on.
     pub sigma: [f32; PARAM_DIM],
     /// The verdict on the first parameter's sigma.
     pub trust: Trust,
@@ -815,11 +823,21 @@ impl<'m> Estimator<'m> {
     }
 
     fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
+        let coordinate = *tail(&self.g);
+        let coordinate_std = self.param_std;
         let mut params = [0.0; PARAM_DIM];
-        for (m, g) in params.iter_mut().zip(tail(&self.g)) {
-            *m = *g;
+        let mut param_std = [0.0; PARAM_DIM];
+        let specs = &self.model.blob().body.params;
+        for ((((p, s), spec), q), q_std) in params
+            .iter_mut()
+            .zip(param_std.iter_mut())
+            .zip(specs)
+            .zip(&coordinate)
+            .zip(&coordinate_std)
+        {
+            *p = spec.read(*q);
+            *s = libm::fabsf(spec.slope(*q)) * q_std;
         }
-        let param_std = self.param_std;
         let sigma = self.spread.sigma();
         let trust = if self.spread.n < 2 {
             Trust::Pending
@@ -834,6 +852,8 @@ impl<'m> Estimator<'m> {
             t: self.t,
             params,
             param_std,
+            coordinate,
+            coordinate_std,
             correction,
             sigma,
             trust,

@@ -360,20 +360,44 @@ impl<'a> Model<'a> {
     }
 
     /// Rolls the model forward from the raw state `x0` with parameters
-    /// `params`, writing the raw (denormalised) states `x_1 .. x_n` into
-    /// `out` (`n = out.len()`).
+    /// `params` (values, as [`crate::StepOutput::params`] reports them;
+    /// the model runs on their coordinates), writing the raw
+    /// (denormalised) states `x_1 .. x_n` into `out` (`n = out.len()`).
+    /// A parameter without a finite coordinate (a length of 0) is refused
+    /// with [`Error::NonFiniteInput`].
     pub fn simulate(
         &self,
         x0: &State,
         params: &[f32; PARAM_DIM],
         out: &mut [State],
     ) -> Result<(), Error> {
-        if !(x0.iter().chain(params).all(|v| v.is_finite())) {
+        self.simulate_coordinates(x0, &self.coordinates(params), out)
+    }
+
+    /// The filter's coordinates of the parameter values `params` (see
+    /// [`crate::blob::Reading`]).
+    pub fn coordinates(&self, params: &[f32; PARAM_DIM]) -> [f32; PARAM_DIM] {
+        let mut q = [0.0; PARAM_DIM];
+        for ((q, p), spec) in q.iter_mut().zip(params).zip(&self.blob.body.params) {
+            *q = spec.coordinate(*p);
+        }
+        q
+    }
+
+    /// [`Model::simulate`] from the parameters' filter coordinates `q`
+    /// ([`crate::StepOutput::coordinate`]).
+    pub fn simulate_coordinates(
+        &self,
+        x0: &State,
+        q: &[f32; PARAM_DIM],
+        out: &mut [State],
+    ) -> Result<(), Error> {
+        if !(x0.iter().chain(q).all(|v| v.is_finite())) {
             return Err(Error::NonFiniteInput);
         }
         let y0 = self.encode(&self.normalise(x0));
         let mut g = [0.0; AUG_DIM];
-        for (d, s) in g.iter_mut().zip(y0.iter().chain(params)) {
+        for (d, s) in g.iter_mut().zip(y0.iter().chain(q)) {
             *d = *s;
         }
         for o in out.iter_mut() {

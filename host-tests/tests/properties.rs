@@ -40,6 +40,29 @@ proptest! {
         }
     }
 
+    /// A reciprocal reading and its coordinate are inverses, and the
+    /// reading rises with the coordinate below `lo + hi`. Values within a
+    /// factor 2 of the range (`lo/2 .. 2 hi`, `hi <= 10 lo`): reading back
+    /// subtracts two numbers near `lo + hi`, so the relative error is
+    /// about `ulp(lo + hi) p / (lo hi) <= 2.4e-7 * 2 (1 + hi / lo)`, under
+    /// 1e-5; the tolerance is 1e-4.
+    #[test]
+    fn a_reciprocal_reading_inverts_its_coordinate(
+        lo in 0.05f32..10.0,
+        ratio in 1.0f32..10.0,
+        at in 0.0f32..1.0,
+    ) {
+        use estimator::blob::{ParamSpec, Reading};
+        let hi = lo * ratio;
+        let spec = ParamSpec { name: "length", declared: true, train_range: [lo, hi], reading: Reading::Reciprocal };
+        let p = lo / 2.0 + at * (2.0 * hi - lo / 2.0);
+        let q = spec.coordinate(p);
+        prop_assert!((spec.read(q) - p).abs() <= 1e-4 * p, "{} vs {}", spec.read(q), p);
+        let q2 = spec.coordinate(p * 1.01);
+        prop_assert!(q2 > q && spec.read(q2) > spec.read(q));
+        prop_assert!(spec.slope(q) > 0.0);
+    }
+
     /// Any bytes at all: an error or a model, never a panic.
     #[test]
     fn arbitrary_bytes_never_panic(b in proptest::collection::vec(any::<u8>(), 0..512)) {
@@ -68,7 +91,11 @@ proptest! {
             let before = (est.mean(), est.covariance());
             match est.step(x) {
                 Ok(out) => {
-                    prop_assert!(out.params.iter().chain(&out.param_std).all(|v| v.is_finite()));
+                    prop_assert!(out.coordinate.iter().chain(&out.coordinate_std).all(|v| v.is_finite()));
+                    prop_assert!(out.coordinate_std.iter().all(|v| *v >= 0.0));
+                    // The reading of a coordinate at lo + hi is infinite
+                    // (reported as it is), never NaN.
+                    prop_assert!(out.params.iter().all(|v| !v.is_nan()));
                     prop_assert!(out.param_std.iter().all(|v| *v >= 0.0));
                     // On the gain schedule P is not tracked (the exporter
                     // checked it); everywhere else it is.

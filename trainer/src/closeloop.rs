@@ -115,7 +115,7 @@ pub fn score(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<(f64, estimator::Step
     let x0 = [xs[0][0] as f32, xs[0][1] as f32];
     let mut sim = vec![[0.0f32; 2]; xs.len() - 1];
     model
-        .simulate(&x0, &out.params, &mut sim)
+        .simulate_coordinates(&x0, &out.coordinate, &mut sim)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let sim: Vec<[f64; 2]> = sim.iter().map(|s| [s[0] as f64, s[1] as f64]).collect();
     Ok((diagnose::scaled_mse(xs, &sim), out))

@@ -1,6 +1,6 @@
 //! The training recipe: one struct with defaults, saved beside every run.
 
-use estimator::blob::Activation;
+use estimator::blob::{Activation, ParamSpec, Reading};
 use serde::{Deserialize, Serialize};
 
 /// Which model a run trains (the protocol's three).
@@ -94,7 +94,8 @@ pub struct TrainConfig {
     pub window: usize,
     /// Windows per batch (half of each length, stratified).
     pub batch: usize,
-    /// Optimiser steps.
+    /// Optimiser steps (the KLM's 2000 and its filter's `Q` and `R`
+    /// were chosen on validation rollouts: see `docs/recipe-selection.md`).
     pub iterations: usize,
     /// Adam learning rate at the start; cosine decay to `lr_final`.
     pub lr: f64,
@@ -116,8 +117,13 @@ pub struct TrainConfig {
     pub q_latent: f64,
     /// Filter: measurement noise, relative to the one-step residual variance.
     pub r_latent: f64,
-    /// Filter: prior standard deviation of the length, m (prior mean 0).
+    /// Filter: prior standard deviation of the length's coordinate (prior
+    /// mean 0).
     pub prior_std_length: f64,
+    /// How the filter's length coordinate reads as the length (the model
+    /// is trained on the coordinate, which equals the length at both ends
+    /// of the training range; see `estimator::blob::Reading`).
+    pub length_reading: Reading,
     /// Trust: threshold = this factor x the largest sigma over training rollouts.
     pub trust_factor: f64,
 }
@@ -136,7 +142,7 @@ impl Default for TrainConfig {
             rollouts_per_length: 200,
             window: 128,
             batch: 32,
-            iterations: 8000,
+            iterations: 2000,
             lr: 1e-3,
             lr_final: 5e-5,
             ridge: 1e-6,
@@ -146,8 +152,9 @@ impl Default for TrainConfig {
             checkpoint_every: 250,
             threads: 0,
             q_latent: 1.0,
-            r_latent: 1.0,
+            r_latent: 0.01,
             prior_std_length: 5.0,
+            length_reading: Reading::Reciprocal,
             trust_factor: 1.5,
         }
     }
@@ -162,14 +169,39 @@ impl TrainConfig {
             ..TrainConfig::default()
         };
         match model {
-            ModelKind::Klm | ModelKind::Cbm => base,
+            ModelKind::Klm => base,
+            // The CBM has no explicit parameter; the MLP regresses the
+            // length itself.
+            ModelKind::Cbm => TrainConfig {
+                length_reading: Reading::Direct,
+                iterations: 8000,
+                ..base
+            },
             ModelKind::Mlp => TrainConfig {
+                length_reading: Reading::Direct,
                 window: 64,
                 batch: 64,
                 hidden: 64,
                 iterations: 4000,
                 ..base
             },
+        }
+    }
+
+    /// The length as the filter's first parameter: its training range and
+    /// reading.
+    pub fn length_spec(&self) -> ParamSpec<'static> {
+        let lo = self.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = self
+            .lengths
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        ParamSpec {
+            name: "length",
+            declared: true,
+            train_range: [lo as f32, hi as f32],
+            reading: self.length_reading,
         }
     }
 

@@ -340,7 +340,7 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset, g: f64) -> Result<Diagnosis> {
             acc.push((w[1][1] - w[0][1]) / dt);
         }
         let n = r.xs.len().min(crate::data::ROLLOUT_LEN);
-        let klm_sim_mse = crate::eval::sim_mse(model, &r.xs[..n], out.params)?;
+        let klm_sim_mse = crate::eval::sim_mse(model, &r.xs[..n], out.coordinate)?;
         per.push(RolloutDiagnosis {
             rollout: r.id,
             steps: r.xs.len(),

@@ -71,12 +71,14 @@ pub struct LengthScore {
     pub cbm_few_shot: Option<f64>,
 }
 
-/// Normalised-units MSE of a simulation against the truth.
-pub fn sim_mse(model: &Model<'_>, xs: &[[f64; 2]], params: [f32; 2]) -> Result<f64> {
+/// Normalised-units MSE against the truth of a simulation with the
+/// parameters' filter coordinates `q` (`StepOutput::coordinate`, or
+/// `Model::coordinates` of values).
+pub fn sim_mse(model: &Model<'_>, xs: &[[f64; 2]], q: [f32; 2]) -> Result<f64> {
     let x0 = [xs[0][0] as f32, xs[0][1] as f32];
     let mut out = vec![[0.0f32; 2]; xs.len() - 1];
     model
-        .simulate(&x0, &params, &mut out)
+        .simulate_coordinates(&x0, &q, &mut out)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut se = 0.0;
     for (sim, truth) in out.iter().zip(&xs[1..]) {
@@ -106,7 +108,7 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
     let mut out = Vec::new();
     for r in &ds.rollouts {
         let m = ds.meta(r.id).context("test rollout without truth")?;
-        let mse_true = sim_mse(model, &r.xs, [m.length as f32, 0.0])?;
+        let mse_true = sim_mse(model, &r.xs, model.coordinates(&[m.length as f32, 0.0]))?;
         let mut est = Estimator::new(model);
         let mut last = None;
         let mut length_trace = Vec::with_capacity(ESTIMATION_STEPS);
@@ -120,7 +122,7 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
             last = Some(o);
         }
         let last = last.context("empty rollout")?;
-        let mse_klm = sim_mse(model, &r.xs, last.params)?;
+        let mse_klm = sim_mse(model, &r.xs, last.coordinate)?;
         out.push(RolloutScore {
             rollout: r.id,
             length: m.length,
@@ -161,7 +163,7 @@ pub fn score_baselines(
         let est = mlp.estimate(&xs)?;
         for ((s, r), e) in scores.iter_mut().zip(&ds.rollouts).zip(est) {
             s.mlp_est = Some(e);
-            s.mse_mlp = Some(sim_mse(model, &r.xs, [e, 0.0])?);
+            s.mse_mlp = Some(sim_mse(model, &r.xs, model.coordinates(&[e, 0.0]))?);
         }
     }
     if let Some(cbm) = cbm {

@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use burn::nn::Linear;
 use burn::tensor::{Tensor, TensorData};
-use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, ParamSpec, SCHEDULE_AT, TAIL_LEN};
+use estimator::blob::{
+    Blob, Body, F32s, FilterSpec, Header, ParamSpec, Reading, SCHEDULE_AT, TAIL_LEN,
+};
 use estimator::{AUG_DIM, INPUT_DIM, LATENT_DIM, Model, PARAM_DIM};
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
@@ -474,14 +476,40 @@ pub fn export_baseline(dir: &Path, out: &Path) -> Result<BaselineInfo> {
 /// protocol's estimation window ([`ESTIMATION_STEPS`] measurements, so
 /// `ESTIMATION_STEPS - 1` updates).
 pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
-    export_with(dir, out, (ESTIMATION_STEPS - 1) as u16)
+    export_with(dir, out, &ExportOptions::default())
 }
 
-/// Exports KLM run `dir` to the blob `out` with a gain schedule of
-/// `schedule_steps` updates (0: none).
-pub fn export_with(dir: &Path, out: &Path, schedule_steps: u16) -> Result<ExportInfo> {
+/// How [`export_with`] departs from the run's own settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExportOptions {
+    /// Updates of the gain schedule (0: none).
+    pub schedule_steps: u16,
+    /// The filter's latent `Q` and `R` scales in place of the run's
+    /// `q_latent` and `r_latent` (the filter is fitted at export, so it is
+    /// tuned without retraining; the config saved beside the blob says
+    /// which were used).
+    pub q_latent: Option<f64>,
+    /// See `q_latent`.
+    pub r_latent: Option<f64>,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            schedule_steps: (ESTIMATION_STEPS - 1) as u16,
+            q_latent: None,
+            r_latent: None,
+        }
+    }
+}
+
+/// Exports KLM run `dir` to the blob `out` with `opts`.
+pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportInfo> {
     let paths = RunPaths::new(dir);
-    let (cfg, state) = run_files(dir)?;
+    let (mut cfg, state) = run_files(dir)?;
+    cfg.q_latent = opts.q_latent.unwrap_or(cfg.q_latent);
+    cfg.r_latent = opts.r_latent.unwrap_or(cfg.r_latent);
+    let schedule_steps = opts.schedule_steps;
     anyhow::ensure!(
         cfg.model == ModelKind::Klm,
         "{}: a {:?} run exports with export_baseline",
@@ -494,21 +522,19 @@ pub fn export_with(dir: &Path, out: &Path, schedule_steps: u16) -> Result<Export
     let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
     let mut parts = BlobParts::new(&model.enc, &model.dec, &f);
     let params = [
-        ParamSpec {
-            name: "length",
-            declared: true,
-            train_range: range(&cfg.lengths),
-        },
+        cfg.length_spec(),
         match &cfg.effect {
             Some(e) => ParamSpec {
                 name: e.name.as_str(),
                 declared: true,
                 train_range: [e.range[0] as f32, e.range[1] as f32],
+                reading: Reading::Direct,
             },
             None => ParamSpec {
                 name: "none",
                 declared: false,
                 train_range: [0.0, 0.0],
+                reading: Reading::Direct,
             },
         },
     ];
@@ -574,12 +600,6 @@ pub fn export_with(dir: &Path, out: &Path, schedule_steps: u16) -> Result<Export
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
     Ok(info)
-}
-
-fn range(v: &[f64]) -> [f32; 2] {
-    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    [lo as f32, hi as f32]
 }
 
 /// `F` (row-major, AUG x AUG) fitted over every transition of `ds`, and
@@ -792,11 +812,13 @@ mod tests {
                 name: "length",
                 declared: true,
                 train_range: [2.0, 5.0],
+                reading: Reading::Reciprocal,
             },
             ParamSpec {
                 name: "none",
                 declared: false,
                 train_range: [0.0, 0.0],
+                reading: Reading::Direct,
             },
         ];
         let blob = parts.blob(&norm, &cfg, filter, params);

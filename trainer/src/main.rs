@@ -110,6 +110,14 @@ enum Cmd {
         /// protocol's estimation window (64 measurements, 63 updates).
         #[arg(long, default_value_t = (export::ESTIMATION_STEPS - 1) as u16)]
         schedule_steps: u16,
+        /// The filter's latent process noise, relative to the one-step
+        /// residual variance (default: the run's `q_latent`).
+        #[arg(long)]
+        q_latent: Option<f64>,
+        /// The filter's measurement noise, relative to the one-step
+        /// residual variance (default: the run's `r_latent`).
+        #[arg(long)]
+        r_latent: Option<f64>,
     },
     /// Runs the on-device estimator over each rollout of a CSV.
     Estimate {
@@ -372,10 +380,17 @@ fn run(cmd: Cmd) -> Result<()> {
             run,
             out,
             schedule_steps,
+            q_latent,
+            r_latent,
         } => match export::run_kind(&run)? {
             ModelKind::Klm => {
                 let out = out.unwrap_or_else(|| "weights/pendulum.kkf".into());
-                let info = export::export_with(&run, &out, schedule_steps)?;
+                let opts = export::ExportOptions {
+                    schedule_steps,
+                    q_latent,
+                    r_latent,
+                };
+                let info = export::export_with(&run, &out, &opts)?;
                 println!(
                     "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
                     out.display(),
@@ -436,7 +451,8 @@ fn run(cmd: Cmd) -> Result<()> {
                 if json {
                     let v = serde_json::json!({
                         "rollout": r.id, "params": out.params, "param_std": out.param_std,
-                        "param_names": names, "sigma": out.sigma[0], "trusted": trusted,
+                        "param_names": names, "coordinate": out.coordinate,
+                        "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                         "trust": format!("{:?}", out.trust).to_lowercase(), "steps": n,
                     });
                     println!("{v}");

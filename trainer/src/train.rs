@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
+use estimator::blob::ParamSpec;
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -122,16 +123,23 @@ pub fn training_data(cfg: &TrainConfig) -> Dataset {
 pub struct Batcher {
     /// `[rollout][t] -> normalised x`.
     xs: Vec<Vec<[f32; 2]>>,
-    /// Parameters per rollout (`[length, 0]`).
+    /// Parameters per rollout: the length's coordinate and the effect's
+    /// coefficient (0 without one).
     ps: Vec<[f32; 2]>,
     /// Rollout indices per length, for stratified batches.
     strata: Vec<Vec<usize>>,
 }
 
 impl Batcher {
-    /// From a data set with its truth; the second parameter is the
-    /// coefficient of the effect named `effect` (0 without one).
-    pub fn new(ds: &Dataset, norm: &Norm, effect: Option<&str>) -> Result<Self> {
+    /// From a data set with its truth; the first parameter is the length's
+    /// coordinate under `length` (its reading), the second the coefficient
+    /// of the effect named `effect` (0 without one).
+    pub fn new(
+        ds: &Dataset,
+        norm: &Norm,
+        length: &ParamSpec<'_>,
+        effect: Option<&str>,
+    ) -> Result<Self> {
         let mut xs = Vec::new();
         let mut ps = Vec::new();
         let mut lengths: Vec<f64> = Vec::new();
@@ -148,7 +156,7 @@ impl Batcher {
                     .with_context(|| format!("rollout {} has no {name} coefficient", r.id))?,
                 None => 0.0,
             };
-            ps.push([m.length as f32, second as f32]);
+            ps.push([length.coordinate(m.length as f32), second as f32]);
             match lengths.iter().position(|&l| l == m.length) {
                 Some(k) => strata[k].push(i),
                 None => {
@@ -321,6 +329,7 @@ fn train_model<M: Trainable>(
     let batcher = Batcher::new(
         &ds,
         &state.norm,
+        &cfg.length_spec(),
         cfg.effect.as_ref().map(|e| e.name.as_str()),
     )?;
     let bar = if quiet {
@@ -387,7 +396,7 @@ mod tests {
             ..TrainConfig::for_model(kind)
         };
         let ds = training_data(&cfg);
-        let b = Batcher::new(&ds, &Norm::fit(&ds), None).unwrap();
+        let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg.length_spec(), None).unwrap();
         let (_, p) = b.batch(&cfg, iteration, &Device::flex());
         let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
         p.chunks(2).map(|c| c[0]).collect()
