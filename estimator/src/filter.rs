@@ -48,6 +48,12 @@
 //! The correction to the parameters at a step is the `p` part of
 //! `K (z - H g)`. After `burn_in` updates, the population standard
 //! deviation of these corrections (sigma) says how far to trust `p`.
+//!
+//! `p` holds the parameters' coordinates `q`; [`StepOutput::params`] reads
+//! them through each parameter's [`Reading`](crate::blob::Reading) (the
+//! shipped length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
+//! gives them as they are. Corrections, sigma and the trust verdict stay
+//! in the coordinates.
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 

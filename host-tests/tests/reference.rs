@@ -94,7 +94,9 @@ fn filter_matches_an_f64_reference_over_whole_test_rollouts() {
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
     let worst = compare(&m, |z0| Reference::new(&m, z0));
-    eprintln!("largest |L - L_ref| over all steps of all 50 rollouts: {worst:.2e}");
+    eprintln!(
+        "largest |q - q_ref| (length coordinate) over all steps of all 50 rollouts: {worst:.2e}"
+    );
 }
 
 #[test]
@@ -108,5 +110,7 @@ fn filter_matches_adskalman_over_whole_test_rollouts() {
         models: &models,
         state: models.start(&m, z0),
     });
-    eprintln!("largest |L - L_adskalman| over all steps of all 50 rollouts: {worst:.2e}");
+    eprintln!(
+        "largest |q - q_adskalman| (length coordinate) over all steps of all 50 rollouts: {worst:.2e}"
+    );
 }
