@@ -82,33 +82,48 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
 }
 
 /// 200 NaN measurements in the middle of a run are all refused, each leaving
-/// the state as it was; afterwards the filter takes measurements again and
-/// its length coordinate comes back to within 0.1 of that of the same run
-/// without the burst. The first measurement after the burst is 200 steps
+/// the state as it was; afterwards the filter takes measurements again, and
+/// from there on every output (step index, estimates, corrections, sigma,
+/// verdict) is exactly that of a filter that never received the 200, on the
+/// gain schedule's path and without it. The two paths agree after the
+/// burst within the reference test's 1e-3 on the length coordinate.
+///
+/// Against the uninterrupted run the coordinate ends 0.062 away with the
+/// format-4 weights (4.1204 against 4.0582; format 3: under 0.05, which this
+/// test asserted then): the first measurement after the burst is 200 steps
 /// ahead of the state it updates, and the static length keeps a share of
-/// that one large innovation for the rest of the run: 0.06 with the
-/// shipped weights (1.5% of the length; the tolerance, 0.1, is a quarter of
-/// the 10% accuracy goal at L = 3.5).
+/// that one large innovation. That is printed, not asserted: it is the
+/// model's response to a gap, not the refusal's.
 #[test]
 fn the_filter_recovers_after_a_burst_of_refused_measurements() {
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
     let xs = noisy(3.5, 2000, 2);
-    let mut clean = Estimator::new(&m);
-    for x in &xs {
-        clean.step(x).unwrap();
-    }
-    let mut est = Estimator::new(&m);
-    for (t, x) in xs.iter().enumerate() {
-        if (1000..1200).contains(&t) {
-            let before = (est.mean(), est.covariance());
-            assert_eq!(est.step(&[f32::NAN, x[1]]), Err(Error::NonFiniteInput));
-            assert_eq!((est.mean(), est.covariance()), before);
-        } else {
-            est.step(x).unwrap();
+    let mut ends = Vec::new();
+    for scheduled in [true, false] {
+        let fresh = || {
+            if scheduled {
+                Estimator::new(&m)
+            } else {
+                Estimator::without_schedule(&m)
+            }
+        };
+        let (mut clean, mut gap, mut est) = (fresh(), fresh(), fresh());
+        for (t, x) in xs.iter().enumerate() {
+            clean.step(x).unwrap();
+            if (1000..1200).contains(&t) {
+                let before = (est.mean(), est.covariance());
+                assert_eq!(est.step(&[f32::NAN, x[1]]), Err(Error::NonFiniteInput));
+                assert_eq!((est.mean(), est.covariance()), before);
+            } else {
+                let out = est.step(x).unwrap();
+                assert_eq!(out, gap.step(x).unwrap(), "step {t}");
+                assert!(out.coordinate.iter().all(|v| v.is_finite()));
+            }
         }
+        let (a, b) = (est.mean()[16], clean.mean()[16]);
+        eprintln!("scheduled {scheduled}: after the burst q = {a:.4}, without it {b:.4}");
+        ends.push(a);
     }
-    let (a, b) = (est.mean()[16], clean.mean()[16]);
-    eprintln!("after the burst: L = {a:.4}, without it {b:.4}");
-    assert!((a - b).abs() < 0.1, "{a} vs {b}");
+    assert!((ends[0] - ends[1]).abs() < 1e-3, "{ends:?}");
 }
