@@ -246,8 +246,8 @@ fn out_of_distribution_lengths_are_flagged() {
 /// [2, 5]: golden values worked by hand (`q` = 2 and 5 at the ends, where
 /// the model was trained; `q = 7 - 10/3.5 = 4.142857` at L = 3.5; the
 /// prior's `q = 0` is L = 10/7), and `dL/dq = L^2 / 10` (0.4 at L = 2,
-/// 2.5 at L = 5). Tolerance 2 ulp-scale (1e-6 relative): one division and
-/// one subtraction in f32.
+/// 2.5 at L = 5). Tolerance 1e-6 relative, a few f32 ulps: each value is
+/// one division and one subtraction in f32.
 #[test]
 fn the_length_reads_through_its_reciprocal_map() {
     use estimator::blob::Reading;
