@@ -9,8 +9,9 @@
 //!   wrong kind gets [`Error::BlobBadMagic`] rather than a decoding error.
 //! - [`Body`]: sampling interval, activation, normalisation, the
 //!   parameters (name, training range, [`Reading`]), the filter's `Q`,
-//!   `R` and prior, the trust calibration, then 0-3 padding bytes and the weight arena: every weight of the
-//!   MLPs, `F` and `B` as one run of little-endian `f32` ([`F32s`]). The
+//!   `R` and prior, the trust calibration, then 0-3 padding bytes and
+//!   the weight arena: every weight of the MLPs, `F` and `B` as one run of
+//!   little-endian `f32` ([`F32s`]). The
 //!   padding puts the arena at a multiple of 4 bytes from the blob's first
 //!   byte, so a blob lying at an aligned address (flash, a heap buffer,
 //!   [`Aligned`]) is read as `&[f32]` in place: nothing proportional to its
