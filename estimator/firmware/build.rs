@@ -1,5 +1,5 @@
-//! Puts `memory.x` on the linker's path and turns `rollouts.csv` (the
-//! project's CSV: `rollout,t,theta,theta_dot`) into a Rust table.
+//! Puts `memory.x` on the linker's path and turns `rollouts.bin` (the
+//! measurements, as `f32`) into a Rust table.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -11,25 +11,30 @@ fn main() {
     fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed=memory.x");
-    println!("cargo:rerun-if-changed=rollouts.csv");
+    println!("cargo:rerun-if-changed=rollouts.bin");
 
-    let text = fs::read_to_string("rollouts.csv").expect("read rollouts.csv");
+    // rollouts.bin (written by host-tests' firmware test from the
+    // protocol's test set): little-endian u32 count, u32 steps, then per
+    // rollout a u32 id and `steps` pairs of f32 (theta, theta_dot).
+    let bytes = fs::read("rollouts.bin").expect("read rollouts.bin");
+    let mut words = bytes
+        .chunks_exact(4)
+        .map(|c| [c[0], c[1], c[2], c[3]]);
+    let mut next = || words.next().expect("rollouts.bin: truncated");
+    let count = u32::from_le_bytes(next());
+    let steps = u32::from_le_bytes(next()) as usize;
     let mut rollouts: BTreeMap<u32, Vec<(f32, f32)>> = BTreeMap::new();
-    for (n, line) in text.lines().enumerate().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        let bad = || -> ! { panic!("rollouts.csv:{}: not `rollout,t,theta,theta_dot`", n + 1) };
-        if f.len() != 4 {
-            bad();
-        }
-        let id: u32 = f[0].parse().unwrap_or_else(|_| bad());
-        let th: f32 = f[2].parse().unwrap_or_else(|_| bad());
-        let om: f32 = f[3].parse().unwrap_or_else(|_| bad());
-        rollouts.entry(id).or_default().push((th, om));
+    for _ in 0..count {
+        let id = u32::from_le_bytes(next());
+        let xs = (0..steps)
+            .map(|_| (f32::from_le_bytes(next()), f32::from_le_bytes(next())))
+            .collect();
+        rollouts.insert(id, xs);
     }
     let steps = rollouts.values().next().map_or(0, Vec::len);
     assert!(
         steps > 0 && rollouts.values().all(|r| r.len() == steps),
-        "rollouts.csv: every rollout needs the same number of rows"
+        "rollouts.bin: no rollouts"
     );
     let mut src = String::new();
     writeln!(
@@ -39,7 +44,7 @@ fn main() {
     .unwrap();
     writeln!(
         src,
-        "/// `(rollout id, raw measurements)` from rollouts.csv.\npub static ROLLOUTS: [(u32, [[f32; 2]; STEPS]); {}] = [",
+        "/// `(rollout id, raw measurements)` from rollouts.bin.\npub static ROLLOUTS: [(u32, [[f32; 2]; STEPS]); {}] = [",
         rollouts.len()
     )
     .unwrap();

@@ -39,6 +39,9 @@ pub const AUG_DIM: usize = LATENT_DIM + PARAM_DIM;
 pub const HIDDEN_DIM: usize = 128;
 /// Control inputs (torque).
 pub const INPUT_DIM: usize = 1;
+/// The protocol's estimation window: the filter sees `x_0 .. x_63`, and
+/// the blob's gain schedule covers its `WINDOW - 1` updates.
+pub const WINDOW: usize = 64;
 
 /// A raw or normalised measured state.
 pub type State = [f32; STATE_DIM];

@@ -1,4 +1,5 @@
-//! Host-side tests of the `estimator` crate against the trainer's output;
+//! Host-side tests of the `estimator` crate against the host's own
+//! simulator and reference filter (`trainer-core`, no burn);
 //! the tests are in `tests/`. This library locates the shipped files and
 //! the benchmarks' inputs.
 
@@ -16,14 +17,25 @@ pub fn shipped_blob() -> Vec<u8> {
 }
 
 /// The protocol's 64-step window of one test rollout (L = 3.5) that the
-/// benchmarks and the instruction counts step through.
-pub use trainer::bench::{WINDOW, window as bench_window};
+/// instruction counts step through.
+pub use trainer_core::bench::window as bench_window;
+pub use trainer_core::protocol::WINDOW;
 
-/// What the benchmarks of the steps after the window start from: the 64
-/// raw states after [`bench_window`], the same encoded, and the filter (on
-/// the blob's gain schedule) after the window.
-pub use trainer::bench::tail as bench_tail;
+/// What the instruction counts of the steps after the window start from:
+/// the 64 raw states after [`bench_window`], the same encoded, and the
+/// filter (on the blob's gain schedule) after the window.
+pub use trainer_core::bench::tail as bench_tail;
 
-/// The independent f64 reference filter (it lives in the trainer, whose
-/// `koopman bench` measures it too).
-pub use trainer::reference;
+/// The independent f64 reference filter (in `trainer-core`; `koopman
+/// bench` and the criterion bench measure it too).
+pub use trainer_core::reference;
+
+/// The largest difference between two covariances, relative to the
+/// largest entry of `reference`: how far the filter's two-stage form (on
+/// the gain schedule's tail) is from the full recursion.
+pub fn covariance_gap(
+    p: &estimator::filter::AugMatrix,
+    reference: &estimator::filter::AugMatrix,
+) -> f32 {
+    (p - reference).amax() / reference.amax().max(f32::MIN_POSITIVE)
+}

@@ -2,7 +2,8 @@
 
 use estimator::{Error, Estimator, Model, Trust};
 use host_tests::shipped_blob;
-use trainer::data::{TEST_LENGTHS, test_set};
+use trainer_core::data::test_set;
+use trainer_core::protocol::TEST_LENGTHS;
 
 #[test]
 fn shipped_blob_reads() {
@@ -194,30 +195,46 @@ fn a_refused_measurement_leaves_the_state_as_it_was() {
     }
 }
 
-/// The recursion run here (without the schedule, and after it) keeps `P`
-/// exactly symmetric and positive definite.
+/// After the gain schedule the filter goes on in the two-stage form; the
+/// covariance it assembles from that form must be the full recursion's
+/// (`Estimator::without_schedule`, the same data), and both must stay
+/// positive definite over the latent and the length.
+///
+/// Tolerance: both run in f32 from the same prior (the exporter checked
+/// the two forms against each other in f64). Measured: the largest gap
+/// over the 5 x 65 steps after the schedule is 2.8e-7 of the largest
+/// entry; 1e-5 leaves a factor of 35 for another compiler's rounding,
+/// and a wrong assembly (a missing `V P_b V^T`, a transposed block) is
+/// off by order 1.
 #[test]
-fn covariance_stays_symmetric_positive_definite() {
+fn two_stage_covariance_is_the_full_recursions_and_positive_definite() {
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
+    let mut worst = 0.0f32;
+    let mut compared = 0;
     for &l in &TEST_LENGTHS {
-        for mut est in [Estimator::without_schedule(&m), Estimator::new(&m)] {
-            for x in rollout(l, 9) {
-                est.step(&x).unwrap();
-                let Some(p) = est.covariance() else {
-                    assert!(est.on_schedule(), "no P after the schedule");
-                    continue;
-                };
-                assert_eq!(p, p.transpose(), "P not symmetric at L = {l}");
+        let (mut full, mut two) = (Estimator::without_schedule(&m), Estimator::new(&m));
+        for x in rollout(l, 9) {
+            full.step(&x).unwrap();
+            two.step(&x).unwrap();
+            let p_full = full.covariance().expect("the recursion tracks P");
+            let Some(p_two) = two.covariance() else {
+                assert!(two.on_schedule(), "no P after the schedule");
+                continue;
+            };
+            let gap = host_tests::covariance_gap(&p_two, &p_full);
+            assert!(gap < 1e-5, "L = {l}: gap {gap:e}");
+            worst = worst.max(gap);
+            compared += 1;
+            for p in [p_full, p_two] {
                 // The undeclared parameter has zero variance: check the 17x17 block.
                 let block = p.fixed_view::<17, 17>(0, 0).into_owned();
-                assert!(
-                    block.cholesky().is_some(),
-                    "P not positive definite at L = {l}"
-                );
+                assert!(block.cholesky().is_some(), "P not positive definite at L = {l}");
             }
         }
     }
+    assert!(compared > 0, "no step after the schedule was compared");
+    eprintln!("two-stage against full recursion: {compared} covariances, largest gap {worst:e}");
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! The firmware example (`estimator/firmware`) in QEMU against the host.
 //!
-//! The firmware filters the rollouts of `estimator/firmware/rollouts.csv`
+//! The firmware filters the rollouts of `estimator/firmware/rollouts.bin`
 //! on an emulated Cortex-M4F (`qemu-system-arm -M mps2-an386`) and prints
 //! every step's outputs as `f32` bits; this test runs the same estimator
 //! on the host over the same `f32` measurements and compares.
@@ -9,12 +9,13 @@
 //! is set (`.ci/run` sets it); elsewhere, without them, the tests that need
 //! them say so and return.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 use estimator::{Estimator, Model, Trust};
 use host_tests::{root, shipped_blob};
-use trainer::data::{TEST_LENGTHS, TEST_PER_LENGTH, test_set};
+use trainer_core::data::{states_f32, test_set};
+use trainer_core::protocol::{TEST_LENGTHS, TEST_PER_LENGTH};
 
 /// Steps per rollout in the firmware: whole test rollouts, the protocol's
 /// 64-step estimation window (on the blob's gain schedule) and 64 more
@@ -31,50 +32,49 @@ fn firmware_dir() -> PathBuf {
     root().join("estimator/firmware")
 }
 
-/// The firmware's data: the first `STEPS` rows of rollout `k = K` at each
-/// test length, from the trainer's own test set.
-fn expected_csv() -> String {
+/// The firmware's data: the first `STEPS` measurements of rollout `k = K`
+/// at each test length, from the protocol's test set, as the `f32` the
+/// estimator takes.
+fn firmware_rollouts() -> Vec<(u32, Vec<[f32; 2]>)> {
     let ds = test_set(0, &TEST_LENGTHS, &[]);
-    let mut s = String::from("rollout,t,theta,theta_dot\n");
-    for li in 0..TEST_LENGTHS.len() {
-        let r = &ds.rollouts[li * TEST_PER_LENGTH + K];
-        for (t, x) in r.t.iter().zip(&r.xs).take(STEPS) {
-            s.push_str(&format!("{},{:.6},{},{}\n", r.id, t, x[0], x[1]));
+    (0..TEST_LENGTHS.len())
+        .map(|li| {
+            let r = &ds.rollouts[li * TEST_PER_LENGTH + K];
+            (r.id, states_f32(&r.xs[..STEPS]))
+        })
+        .collect()
+}
+
+/// `rollouts.bin` as the firmware's build script reads it: little-endian
+/// u32 count, u32 steps, then per rollout a u32 id and `steps` pairs of
+/// f32.
+fn encode(rollouts: &[(u32, Vec<[f32; 2]>)]) -> Vec<u8> {
+    let mut b = Vec::new();
+    b.extend((rollouts.len() as u32).to_le_bytes());
+    b.extend((STEPS as u32).to_le_bytes());
+    for (id, xs) in rollouts {
+        b.extend(id.to_le_bytes());
+        for x in xs {
+            b.extend(x[0].to_le_bytes());
+            b.extend(x[1].to_le_bytes());
         }
     }
-    s
+    b
 }
 
 #[test]
 fn firmware_rollouts_are_the_protocol_test_set() {
-    let path = firmware_dir().join("rollouts.csv");
-    let want = expected_csv();
+    let path = firmware_dir().join("rollouts.bin");
+    let want = encode(&firmware_rollouts());
     if std::env::var_os("KOOPMAN_BLESS").is_some() {
         std::fs::write(&path, &want).unwrap();
     }
-    let have = std::fs::read_to_string(&path).unwrap();
+    let have = std::fs::read(&path).unwrap();
     assert!(
         have == want,
         "{} differs from the test set (KOOPMAN_BLESS=1 rewrites it)",
         path.display()
     );
-}
-
-/// `(rollout id, measurements)` parsed as `f32` straight from the text, as
-/// the firmware's build script does.
-fn rollouts_f32(path: &Path) -> Vec<(u32, Vec<[f32; 2]>)> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut out: Vec<(u32, Vec<[f32; 2]>)> = Vec::new();
-    for line in text.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        let id: u32 = f[0].parse().unwrap();
-        let x = [f[2].parse().unwrap(), f[3].parse().unwrap()];
-        match out.last_mut() {
-            Some((last, xs)) if *last == id => xs.push(x),
-            _ => out.push((id, vec![x])),
-        }
-    }
-    out
 }
 
 /// Whether `tool` is here; where it is not, the test says so and is
@@ -185,7 +185,7 @@ fn firmware_in_qemu_matches_the_host() {
     // Host outputs for the same f32 measurements.
     let bytes = shipped_blob();
     let model = Model::from_bytes(&bytes).unwrap();
-    let rollouts = rollouts_f32(&firmware_dir().join("rollouts.csv"));
+    let rollouts = firmware_rollouts();
     let mut steps = lines.iter().filter(|l| l.starts_with("step "));
     // Tolerance: the same f32 operations in the same order on both sides
     // (IEEE-754 single precision, no fused multiply-add on either, the

@@ -103,9 +103,18 @@ proptest! {
                         prop_assert!(scheduled && est.on_schedule());
                         continue;
                     };
-                    prop_assert_eq!(p, p.transpose());
+                    // Positive definite over the latent and the length,
+                    // and every covariance within Cauchy-Schwarz's bound
+                    // |P_ij| <= sqrt(P_ii P_jj) (relative slack 1e-3 for
+                    // f32 rounding), which a corrupted entry breaks.
                     let block = p.fixed_view::<17, 17>(0, 0).into_owned();
                     prop_assert!(block.cholesky().is_some());
+                    for i in 0..18 {
+                        for j in 0..18 {
+                            let bound = (p[(i, i)] * p[(j, j)]).max(0.0).sqrt();
+                            prop_assert!(p[(i, j)].abs() <= bound * 1.001 + 1e-30, "P[{}][{}]", i, j);
+                        }
+                    }
                 }
                 Err(e) => {
                     prop_assert!(matches!(

@@ -6,7 +6,8 @@
 use estimator::{Estimator, LATENT_DIM, Latent, Model};
 use host_tests::reference::Reference;
 use host_tests::shipped_blob;
-use trainer::data::{TEST_LENGTHS, test_set};
+use trainer_core::data::test_set;
+use trainer_core::protocol::TEST_LENGTHS;
 
 /// An oracle filter: started on the first encoded measurement, stepped on
 /// each later one, reporting the length's estimate and std.
@@ -25,8 +26,8 @@ impl Oracle for Reference {
 }
 
 struct Ads<'m> {
-    models: &'m trainer::reference::ads::Models,
-    state: trainer::reference::ads::State,
+    models: &'m trainer_core::reference::ads::Models,
+    state: trainer_core::reference::ads::State,
 }
 
 impl Oracle for Ads<'_> {
@@ -105,7 +106,7 @@ fn filter_matches_adskalman_over_whole_test_rollouts() {
     // crate (f32, textbook gain, Joseph form).
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
-    let models = trainer::reference::ads::Models::new(&m);
+    let models = trainer_core::reference::ads::Models::new(&m);
     let worst = compare(&m, |z0| Ads {
         models: &models,
         state: models.start(&m, z0),

@@ -36,52 +36,10 @@ use burn::tensor::{Device, Tensor, TensorData};
 use estimator::{Estimator, Latent, Model, State};
 use serde::Serialize;
 
-use crate::data::{TEST_LENGTHS, test_set};
-use crate::model::Mlp;
-use crate::reference::Reference;
+use trainer_core::bench::{WINDOW_ROLLOUT, tail, window};
+use trainer_core::reference::{Reference, ads};
 
-/// Steps in [`window`]: the protocol's estimation window.
-pub const WINDOW: usize = 64;
-/// The test rollout [`window`] is taken from (L = 3.5, in distribution).
-pub const WINDOW_ROLLOUT: usize = 34;
-
-/// The first [`WINDOW`] raw states of test rollout [`WINDOW_ROLLOUT`]
-/// (L = 3.5, theta_0 = pi/2 + 4 (0.4 pi) / 9): what the benchmarks and the
-/// instruction counts step through.
-pub fn window() -> Vec<State> {
-    let mut xs = whole_rollout();
-    xs.truncate(WINDOW);
-    xs
-}
-
-/// All 128 raw states of test rollout [`WINDOW_ROLLOUT`]: the window, then
-/// the steps after it (the filter's two-stage tail).
-pub fn whole_rollout() -> Vec<State> {
-    let ds = test_set(0, &TEST_LENGTHS, &[]);
-    ds.rollouts
-        .get(WINDOW_ROLLOUT)
-        .map(|r| r.xs.iter().map(|x| [x[0] as f32, x[1] as f32]).collect())
-        .unwrap_or_default()
-}
-
-/// What the timings of the steps after the window start from: the raw
-/// states of [`whole_rollout`] after [`window`], the same encoded, and the
-/// filter (on the blob's gain schedule) after the window.
-pub fn tail<'m>(model: &'m Model<'m>) -> (Vec<State>, Vec<Latent>, Estimator<'m>) {
-    let all = whole_rollout();
-    let (window, after) = all.split_at(WINDOW.min(all.len()));
-    let zs = after
-        .iter()
-        .map(|x| model.encode(&model.normalise(x)))
-        .collect();
-    let mut warm = Estimator::new(model);
-    for x in window {
-        // A refused step leaves the filter as it was; the window is the
-        // protocol's test data, which every step accepts.
-        let _ = warm.step(x);
-    }
-    (after.to_vec(), zs, warm)
-}
+use crate::learn::model::Mlp;
 
 /// Nanoseconds per step, ours and the peers', and their ratios.
 #[derive(Debug, Clone, Serialize)]
@@ -232,7 +190,7 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
             black_box(r.step(black_box(z)));
         }
     });
-    let ads = crate::reference::ads::Models::new(model);
+    let ads = ads::Models::new(model);
     let (peer_adskalman_filter_ns, _) = per_step(budget, n, || {
         let mut state = ads.start(model, &first);
         for z in zs.iter().skip(1) {
@@ -338,20 +296,4 @@ pub fn table(r: &BenchReport) -> String {
         }
     }
     s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn window_is_the_protocols_estimation_window() {
-        let xs = window();
-        assert_eq!(xs.len(), WINDOW);
-        let ds = test_set(0, &TEST_LENGTHS, &[]);
-        let r = &ds.rollouts[WINDOW_ROLLOUT];
-        assert_eq!(ds.sidecar.rollouts[WINDOW_ROLLOUT].length, 3.5);
-        assert_eq!(xs[0], [r.xs[0][0] as f32, r.xs[0][1] as f32]);
-        assert_eq!(xs[63], [r.xs[63][0] as f32, r.xs[63][1] as f32]);
-    }
 }

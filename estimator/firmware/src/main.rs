@@ -1,7 +1,7 @@
 //! The estimator on a Cortex-M4F, in QEMU (`mps2-an386`, semihosting).
 //!
 //! Reads the shipped weights in place (`include_bytes!`), filters the test
-//! rollouts of `rollouts.csv` (embedded by `build.rs`) step by step, each
+//! rollouts of `rollouts.bin` (embedded by `build.rs`) step by step, each
 //! twice (as shipped: the blob's gain schedule, then the two-stage tail;
 //! and with `Estimator::without_schedule`), and
 //! prints every step's outputs as the hex bits of each `f32`, so that
@@ -42,7 +42,7 @@ static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/pendulu
 
 /// Measurements in the protocol's estimation window: updates `1..WINDOW`
 /// are timed apart from the later ones.
-const WINDOW: u32 = 64;
+const WINDOW: u32 = estimator::WINDOW as u32;
 
 /// Turns of `asm::delay` in the calibration: `2 (n + 1)` instructions.
 const CALIBRATION_TURNS: u32 = 1_000_000;

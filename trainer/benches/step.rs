@@ -1,0 +1,241 @@
+//! Host time per estimator step, and the peers a user would reach for
+//! instead, measured in the same run:
+//!
+//! - `estimator/step`: [`Estimator::step`] (normalise, encode, filter),
+//!   per step over the protocol's 64-step window of a test rollout: the
+//!   updates apply the blob's gain schedule.
+//! - `estimator/encode`: [`Model::encode`] alone.
+//! - `estimator/filter`: [`Estimator::step_latent`] alone (the measurement
+//!   already encoded).
+//! - `estimator/step_tail`, `estimator/filter_tail`: the 64 steps after
+//!   the window (updates 64-127, the filter's two-stage form), each pass
+//!   from a copy of the filter after the window.
+//! - `estimator/step_recursive`, `estimator/filter_recursive`: the same
+//!   with [`Estimator::without_schedule`], the covariance recursion at
+//!   every update (what a step costs after the schedule's 63 updates).
+//! - `peer/burn_encode`: the same encoder architecture through burn's
+//!   forward pass (flex CPU backend, a batch of one).
+//! - `peer/f64_filter`: an f64 Kalman filter on dynamic nalgebra matrices
+//!   ([`trainer_core::reference::Reference`]).
+//! - `peer/adskalman_filter`: the same filter through the `adskalman`
+//!   crate (f32, static sizes, Joseph form).
+//! - `peer/step`: burn's encoder and the f64 filter together, the
+//!   straightforward host pipeline.
+//!
+//! `cargo bench -p trainer --bench step` prints each time and, at the
+//! end, the ratios of the peers to the estimator.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use burn::tensor::{Device, Tensor, TensorData};
+use criterion::{Criterion, Throughput};
+use estimator::{Estimator, Latent, Model, State};
+use trainer::learn::model::Mlp;
+use trainer_core::bench::window as bench_window;
+use trainer_core::protocol::WINDOW;
+use trainer_core::reference::{Reference, ads};
+
+/// The shipped weights blob's bytes.
+fn shipped_blob() -> Vec<u8> {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn bench(c: &mut Criterion) {
+    let bytes = shipped_blob();
+    let model = Model::from_bytes(&bytes).expect("shipped blob");
+    let xs = bench_window();
+    let zs: Vec<Latent> = xs
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+
+    let mut g = c.benchmark_group("estimator");
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(3));
+    g.throughput(Throughput::Elements(WINDOW as u64));
+    g.bench_function("step", |b| {
+        let mut est = Estimator::new(&model);
+        b.iter(|| {
+            est.reset();
+            for x in &xs {
+                black_box(est.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("encode", |b| {
+        b.iter(|| {
+            for x in &xs {
+                black_box(model.encode(black_box(x)));
+            }
+        })
+    });
+    g.bench_function("filter", |b| {
+        let mut est = Estimator::new(&model);
+        b.iter(|| {
+            est.reset();
+            for z in &zs {
+                black_box(est.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    let (after, zs_after, warm) = trainer_core::bench::tail(&model);
+    g.bench_function("step_tail", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for x in &after {
+                black_box(e.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("filter_tail", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for z in &zs_after {
+                black_box(e.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    g.bench_function("step_recursive", |b| {
+        let mut est = Estimator::without_schedule(&model);
+        b.iter(|| {
+            est.reset();
+            for x in &xs {
+                black_box(est.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("filter_recursive", |b| {
+        let mut est = Estimator::without_schedule(&model);
+        b.iter(|| {
+            est.reset();
+            for z in &zs {
+                black_box(est.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    g.finish();
+
+    let device = Device::flex();
+    let act = model.blob().body.activation;
+    let enc = Mlp::new(2, 128, 16, &device);
+    let burn_encode = |x: &State| -> Vec<f32> {
+        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
+        enc.forward(t, act)
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 output")
+    };
+    let mut g = c.benchmark_group("peer");
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(3));
+    g.throughput(Throughput::Elements(WINDOW as u64));
+    g.bench_function("burn_encode", |b| {
+        b.iter(|| {
+            for x in &xs {
+                black_box(burn_encode(black_box(x)));
+            }
+        })
+    });
+    g.bench_function("f64_filter", |b| {
+        b.iter(|| {
+            let mut r = Reference::new(&model, &zs[0]);
+            for z in &zs[1..] {
+                r.step(black_box(z));
+            }
+            black_box(r.g[16])
+        })
+    });
+    let ads = ads::Models::new(&model);
+    g.bench_function("adskalman_filter", |b| {
+        b.iter(|| {
+            let mut state = ads.start(&model, &zs[0]);
+            for z in &zs[1..] {
+                if let Some(next) = ads.step(&state, black_box(z)) {
+                    state = next;
+                }
+            }
+            black_box(state)
+        })
+    });
+    g.bench_function("step", |b| {
+        b.iter(|| {
+            let z0 = burn_encode(&model.normalise(&xs[0]));
+            let mut r = Reference::new(&model, &z0);
+            for x in &xs[1..] {
+                let z = burn_encode(&model.normalise(x));
+                r.step(&z);
+            }
+            black_box(r.g[16])
+        })
+    });
+    g.finish();
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    bench(&mut c);
+    c.final_summary();
+    ratios();
+}
+
+/// Reads criterion's estimates back and prints peer / estimator ratios.
+fn ratios() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("..")
+        .join("criterion");
+    let read = |group: &str, name: &str| -> Option<f64> {
+        let p = dir.join(group).join(name).join("new/estimates.json");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()?;
+        v["mean"]["point_estimate"]
+            .as_f64()
+            .map(|ns| ns / WINDOW as f64)
+    };
+    let pairs = [
+        ("step", ("estimator", "step"), ("peer", "step")),
+        ("encoder", ("estimator", "encode"), ("peer", "burn_encode")),
+        ("filter", ("estimator", "filter"), ("peer", "f64_filter")),
+        (
+            "filter (ads)",
+            ("estimator", "filter"),
+            ("peer", "adskalman_filter"),
+        ),
+        ("step, tail", ("estimator", "step_tail"), ("peer", "step")),
+        (
+            "filter, tail",
+            ("estimator", "filter_tail"),
+            ("peer", "f64_filter"),
+        ),
+        (
+            "filter, tail (ads)",
+            ("estimator", "filter_tail"),
+            ("peer", "adskalman_filter"),
+        ),
+        (
+            "step, rec.",
+            ("estimator", "step_recursive"),
+            ("peer", "step"),
+        ),
+        (
+            "filter, rec.",
+            ("estimator", "filter_recursive"),
+            ("peer", "f64_filter"),
+        ),
+        (
+            "filter, rec. (ads)",
+            ("estimator", "filter_recursive"),
+            ("peer", "adskalman_filter"),
+        ),
+    ];
+    println!("\nper step (ns)          estimator        peer   peer/estimator");
+    for (what, ours, peer) in pairs {
+        if let (Some(a), Some(b)) = (read(ours.0, ours.1), read(peer.0, peer.1)) {
+            println!("{what:<18} {a:>13.0} {b:>11.0} {:>16.1}", b / a);
+        }
+    }
+    println!(
+        "(tail: updates 64-127, two-stage form; rec.: without the gain schedule, \
+         the covariance recursion at every update)"
+    );
+}

@@ -1,0 +1,172 @@
+//! Simulated data sets per the protocol: the training set (seeded initial
+//! angles) and the test set (fixed initial angles).
+
+use std::f64::consts::PI;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::{Dataset, Rollout, RolloutMeta, Sidecar};
+use crate::physics::{Effect, EffectRange, Pendulum};
+use crate::protocol::{DT, G, ROLLOUT_LEN, TEST_PER_LENGTH, THETA0};
+
+/// The physical constants a data set is simulated with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Physics {
+    /// Gravity, m/s^2.
+    pub g: f64,
+    /// Observation interval, s.
+    pub dt: f64,
+}
+
+impl Physics {
+    /// The protocol's: `g = 10`, `dt = 0.05`.
+    pub const PROTOCOL: Physics = Physics {
+        g: G,
+        dt: DT,
+    };
+}
+
+/// One rollout to simulate: length, initial angle, its effects.
+type Spec = (f64, f64, Vec<Effect>);
+
+fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
+    let mut rollouts = Vec::new();
+    let mut metas = Vec::new();
+    let dt = physics.dt;
+    for (id, (length, theta0, effects)) in specs.into_iter().enumerate() {
+        let mut p = Pendulum::new(length);
+        p.g = physics.g;
+        p.effects = effects.clone();
+        let xs = p.rollout([theta0, 0.0], ROLLOUT_LEN, dt);
+        let t = (0..ROLLOUT_LEN).map(|k| k as f64 * dt).collect();
+        rollouts.push(Rollout {
+            id: id as u32,
+            t,
+            xs,
+        });
+        metas.push(RolloutMeta {
+            rollout: id as u32,
+            length,
+            theta0,
+            effects: effects
+                .iter()
+                .map(|e| (e.name().to_string(), e.coefficient))
+                .collect(),
+        });
+    }
+    Dataset {
+        rollouts,
+        sidecar: Sidecar {
+            set: set.into(),
+            seed: Some(seed),
+            dt,
+            rollouts: metas,
+        },
+    }
+}
+
+/// The training set: `per_length` rollouts at each length, `theta_0`
+/// uniform in `[pi/2, 0.9 pi]`, drawn from ChaCha8 seeded with `seed`.
+pub fn training_set(seed: u64, lengths: &[f64], per_length: usize, effects: &[Effect]) -> Dataset {
+    training_set_with(
+        seed,
+        lengths,
+        per_length,
+        effects,
+        Physics::PROTOCOL,
+        THETA0,
+        None,
+    )
+}
+
+/// A training set with other constants: `theta_0` uniform in `theta0`, and,
+/// with `varied`, one more effect whose coefficient is drawn per rollout
+/// (after its `theta_0`, from the same generator) uniformly in its range.
+pub fn training_set_with(
+    seed: u64,
+    lengths: &[f64],
+    per_length: usize,
+    effects: &[Effect],
+    physics: Physics,
+    theta0: [f64; 2],
+    varied: Option<&EffectRange>,
+) -> Dataset {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut specs = Vec::new();
+    for &l in lengths {
+        for _ in 0..per_length {
+            let th = rng.random_range(theta0[0]..=theta0[1]);
+            let mut e = effects.to_vec();
+            if let Some(v) = varied {
+                e.push(v.at(rng.random_range(v.range[0]..=v.range[1])));
+            }
+            specs.push((l, th, e));
+        }
+    }
+    make("train", seed, specs, physics)
+}
+
+/// The test set: 10 rollouts per test length, `theta_0 = pi/2 + k 0.4 pi / 9`.
+pub fn test_set(seed: u64, lengths: &[f64], effects: &[Effect]) -> Dataset {
+    let mut specs = Vec::new();
+    for &l in lengths {
+        for k in 0..TEST_PER_LENGTH {
+            specs.push((l, PI / 2.0 + k as f64 * 0.4 * PI / 9.0, effects.to_vec()));
+        }
+    }
+    make("test", seed, specs, Physics::PROTOCOL)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::to_csv;
+
+    #[test]
+    fn training_set_is_seeded() {
+        let a = training_set(7, &[2.0, 5.0], 3, &[]);
+        let b = training_set(7, &[2.0, 5.0], 3, &[]);
+        let c = training_set(8, &[2.0, 5.0], 3, &[]);
+        assert_eq!(to_csv(&a), to_csv(&b));
+        assert_ne!(to_csv(&a), to_csv(&c));
+        for m in &a.sidecar.rollouts {
+            assert!((PI / 2.0..=0.9 * PI).contains(&m.theta0));
+        }
+    }
+
+    #[test]
+    fn constants_and_a_varied_effect_reach_the_data() {
+        let varied = EffectRange::parse("viscous:0.1..0.3").unwrap();
+        let physics = Physics { g: 9.81, dt: 0.02 };
+        let ds = training_set_with(3, &[0.13], 6, &[], physics, [0.5, 1.0], Some(&varied));
+        assert_eq!(ds.sidecar.dt, 0.02);
+        assert!((ds.rollouts[0].t[1] - 0.02).abs() < 1e-12);
+        let mut cs = Vec::new();
+        for (r, m) in ds.rollouts.iter().zip(&ds.sidecar.rollouts) {
+            assert!((0.5..=1.0).contains(&m.theta0));
+            let c = m.effects["viscous"];
+            assert!((0.1..=0.3).contains(&c), "{c}");
+            cs.push(c);
+            // Damped: the energy falls over the rollout.
+            let e = |x: [f64; 2]| 0.5 * x[1] * x[1] + 1.5 * 9.81 / 0.13 * (1.0 - x[0].cos());
+            assert!(e(r.xs[127]) < 0.9 * e(r.xs[0]));
+        }
+        assert!(
+            cs.windows(2).any(|w| w[0] != w[1]),
+            "one coefficient for all: {cs:?}"
+        );
+        // Without the varied effect the protocol's stream is unchanged.
+        let a = training_set(7, &[2.0, 5.0], 3, &[]);
+        let b = training_set_with(
+            7,
+            &[2.0, 5.0],
+            3,
+            &[],
+            Physics::PROTOCOL,
+            THETA0,
+            None,
+        );
+        assert_eq!(a, b);
+    }
+}

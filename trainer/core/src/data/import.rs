@@ -1,0 +1,378 @@
+//! `koopman import`: measured recordings into the project's CSV.
+//!
+//! Two input formats:
+//! - the rotary-encoder logger's (`../shared/data/measured/rotary-encoder/`):
+//!   line 1 names `trigger_start_deg, sample_rate, duration_sec`, line 2 holds
+//!   their values, then one angle per line in degrees, sample `k` at
+//!   `k / sample_rate` s;
+//! - a table with a header line, comma-, tab- or semicolon-separated, whose
+//!   time, angle and (optional) rate columns the user names ([`Columns`])
+//!   or which has the usual names (`t`, `theta`, `theta_dot`, ...); without a
+//!   time column the sample rate is given (`--rate`).
+//!
+//! Angles are converted to radians. Where the rate is missing it is derived
+//! by a smoothing differentiator: the least-squares slope over a centred
+//! window of `2m + 1` samples, `theta_dot_i = sum_k k theta_{i+k} / (h sum_k k^2)`
+//! (Savitzky-Golay, first derivative, linear or quadratic fit), the window
+//! shrinking at the ends. The angle is smoothed by the same window's mean.
+//! Then both are resampled to the model's `dt` by linear interpolation, after
+//! an optional trim.
+
+use std::path::Path;
+
+use crate::protocol::DT;
+
+use anyhow::{Context, Result};
+
+use super::table::{CsvError, Table};
+use super::{Dataset, Rollout, Sidecar};
+
+/// Angle unit of the input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Unit {
+    /// Degrees.
+    Degrees,
+    /// Radians.
+    Radians,
+}
+
+/// How to import.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ImportOptions {
+    /// Unit of the angles (the rotary-encoder format is always degrees).
+    pub unit: Unit,
+    /// Sample rate, Hz, for inputs without a time column (the rotary-encoder
+    /// format states its own).
+    pub rate: Option<f64>,
+    /// Output interval, s (the model's `dt`).
+    pub dt: f64,
+    /// Drop the first this many seconds.
+    pub start: f64,
+    /// Keep at most this many seconds after `start`.
+    pub duration: Option<f64>,
+    /// Half-width of the differentiator's window, seconds.
+    pub smooth: f64,
+    /// Which columns of a plain CSV hold what.
+    pub columns: Columns,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        ImportOptions {
+            unit: Unit::Radians,
+            rate: None,
+            dt: DT,
+            start: 0.0,
+            duration: None,
+            smooth: 0.01,
+            columns: Columns::default(),
+        }
+    }
+}
+
+/// A recording as read: times, angles (rad) and rates where the input had them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// Times, s, increasing.
+    pub t: Vec<f64>,
+    /// Angle, rad.
+    pub theta: Vec<f64>,
+    /// Rate, rad/s, if the input had a column for it.
+    pub theta_dot: Option<Vec<f64>>,
+}
+
+/// Which columns of a plain CSV hold what: a header name (compared
+/// without case and without a unit in brackets or parentheses, so `theta`
+/// names `Theta [deg]`) or a 1-based column number. Unset: the first of
+/// the usual names ([`TIME_NAMES`], [`ANGLE_NAMES`], [`RATE_NAMES`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Columns {
+    /// The time stamps, s.
+    pub time: Option<String>,
+    /// The angle.
+    pub angle: Option<String>,
+    /// The angular rate (optional in the file).
+    pub rate: Option<String>,
+}
+
+/// Header names taken as the time column.
+pub const TIME_NAMES: [&str; 4] = ["t", "time", "timestamp", "time_s"];
+/// Header names taken as the angle column.
+pub const ANGLE_NAMES: [&str; 3] = ["theta", "angle", "phi"];
+/// Header names taken as the rate column.
+pub const RATE_NAMES: [&str; 3] = ["theta_dot", "omega", "angular_velocity"];
+
+/// A header field without case and without a trailing unit: `Theta [deg]`
+/// and `theta (rad)` are `theta`.
+fn bare(name: &str) -> String {
+    let cut = name.find(['[', '(']).unwrap_or(name.len());
+    name[..cut].trim().to_lowercase()
+}
+
+/// The column `given` names, or the first of `usual` in the header.
+fn find(table: &Table, given: Option<&str>, usual: &[&str], what: &str) -> Result<Option<usize>, CsvError> {
+    let header: Vec<String> = table.header.iter().map(|h| bare(h)).collect();
+    match given {
+        Some(g) => {
+            if let Ok(k) = g.trim().parse::<usize>() {
+                return if (1..=header.len()).contains(&k) {
+                    Ok(Some(k - 1))
+                } else {
+                    Err(table.error(1, format!("{what} column {k} is not among the header's {} columns", header.len())))
+                };
+            }
+            let b = bare(g);
+            header.iter().position(|h| *h == b).map(Some).ok_or_else(|| {
+                table.error(1, format!("no {what} column named {g:?} in the header {:?}", table.header.join(",")))
+            })
+        }
+        None => Ok(usual.iter().find_map(|u| header.iter().position(|h| h == u))),
+    }
+}
+
+/// The rotary-encoder logger's format: line 1 names
+/// `trigger_start_deg, sample_rate, duration_sec`, line 2 holds their
+/// values, then one angle per line in degrees.
+fn parse_encoder(table: &Table) -> Result<Recording, CsvError> {
+    let values = table
+        .rows
+        .first()
+        .ok_or_else(|| table.error(2, "missing the values line"))?;
+    let k = table
+        .header
+        .iter()
+        .position(|n| n.to_lowercase() == "sample_rate")
+        .ok_or_else(|| table.error(1, "no sample_rate field"))?;
+    let rate = table.number(values, k, "sample_rate")?;
+    if rate <= 0.0 {
+        return Err(table.error(values.line, "sample_rate must be positive"));
+    }
+    let mut theta = Vec::new();
+    for row in table.rows.iter().skip(1) {
+        theta.push(table.number(row, 0, "angle")?.to_radians());
+    }
+    let t = (0..theta.len()).map(|k| k as f64 / rate).collect();
+    Ok(Recording {
+        t,
+        theta,
+        theta_dot: None,
+    })
+}
+
+/// Parses a recording (either format; see the module docs) from its
+/// table.
+pub fn parse_table(table: &Table, opts: &ImportOptions) -> Result<Recording, CsvError> {
+    if table.header.first().map(|h| h.to_lowercase()).as_deref() == Some("trigger_start_deg") {
+        return parse_encoder(table);
+    }
+    let scale = match opts.unit {
+        Unit::Degrees => std::f64::consts::PI / 180.0,
+        Unit::Radians => 1.0,
+    };
+    let ti = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
+    let th = find(table, opts.columns.angle.as_deref(), &ANGLE_NAMES, "angle")?.ok_or_else(|| {
+        table.error(
+            1,
+            format!(
+                "no angle column (header {:?}): name it (--angle-column)",
+                table.header.join(",")
+            ),
+        )
+    })?;
+    let td = find(table, opts.columns.rate.as_deref(), &RATE_NAMES, "rate")?;
+    if ti.is_none() && opts.rate.is_none() {
+        return Err(table.error(0, "no time column: name it (--time-column) or give the sample rate (--rate)"));
+    }
+    let (mut t, mut theta, mut rate) = (Vec::new(), Vec::new(), Vec::new());
+    for row in &table.rows {
+        let time = match (ti, opts.rate) {
+            (Some(k), _) => table.number(row, k, "time")?,
+            (None, Some(r)) => theta.len() as f64 / r,
+            (None, None) => 0.0, // refused above
+        };
+        if let Some(&prev) = t.last()
+            && time <= prev
+        {
+            return Err(table.error(row.line, format!("time {time} does not increase (previous {prev})")));
+        }
+        t.push(time);
+        theta.push(table.number(row, th, "angle")? * scale);
+        if let Some(k) = td {
+            rate.push(table.number(row, k, "rate")? * scale);
+        }
+    }
+    Ok(Recording {
+        t,
+        theta,
+        theta_dot: td.map(|_| rate),
+    })
+}
+
+/// Parses a recording from `text`, the contents of `path`.
+pub fn parse(path: &Path, text: &str, opts: &ImportOptions) -> Result<Recording, CsvError> {
+    parse_table(&Table::parse(path, text)?, opts)
+}
+
+/// The smoothing differentiator (module docs) with half-width `m` samples on
+/// a uniform grid of step `h`: `(smoothed theta, theta_dot)`.
+pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
+    let n = theta.len();
+    let mut smooth = Vec::with_capacity(n);
+    let mut rate = Vec::with_capacity(n);
+    for i in 0..n {
+        let w = m.min(i).min(n - 1 - i);
+        let window = &theta[i - w..=i + w];
+        smooth.push(window.iter().sum::<f64>() / window.len() as f64);
+        if w == 0 {
+            // The two end samples: a one-sided difference.
+            let d = if i == 0 {
+                theta.get(1).map_or(0.0, |b| b - theta[0])
+            } else {
+                theta[i] - theta[i - 1]
+            };
+            rate.push(d / h);
+            continue;
+        }
+        let num: f64 = (1..=w)
+            .map(|k| k as f64 * (theta[i + k] - theta[i - k]))
+            .sum();
+        let den: f64 = (1..=w).map(|k| 2.0 * (k * k) as f64).sum();
+        rate.push(num / (den * h));
+    }
+    (smooth, rate)
+}
+
+/// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).
+fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
+    let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);
+    let (t0, t1) = (t[k - 1], t[k]);
+    let a = ((at - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    v[k - 1] * (1.0 - a) + v[k] * a
+}
+
+/// Imports one recording as rollout `id`: rate, trim, resample.
+pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Rollout> {
+    anyhow::ensure!(rec.t.len() >= 3, "a recording needs at least 3 samples");
+    let theta_dot = match &rec.theta_dot {
+        Some(r) => r.clone(),
+        None => {
+            let h = (rec.t[rec.t.len() - 1] - rec.t[0]) / (rec.t.len() - 1) as f64;
+            let m = (opts.smooth / h).round().max(1.0) as usize;
+            let (smooth, rate) = differentiate(&rec.theta, h, m);
+            return to_rollout(
+                &Recording {
+                    t: rec.t.clone(),
+                    theta: smooth,
+                    theta_dot: Some(rate),
+                },
+                id,
+                opts,
+            );
+        }
+    };
+    let t0 = rec.t[0] + opts.start;
+    let end = rec.t[rec.t.len() - 1];
+    let end = opts.duration.map_or(end, |d| end.min(t0 + d));
+    anyhow::ensure!(end > t0, "nothing left after trimming {} s", opts.start);
+    let n = ((end - t0) / opts.dt + 1e-9).floor() as usize + 1;
+    let mut t = Vec::with_capacity(n);
+    let mut xs = Vec::with_capacity(n);
+    for k in 0..n {
+        let at = t0 + k as f64 * opts.dt;
+        t.push(k as f64 * opts.dt);
+        xs.push([
+            interp(&rec.t, &rec.theta, at),
+            interp(&rec.t, &theta_dot, at),
+        ]);
+    }
+    Ok(Rollout { id, t, xs })
+}
+
+/// Imports files as rollouts `1..`, into a data set without truth.
+pub fn import(paths: &[std::path::PathBuf], opts: &ImportOptions) -> Result<Dataset> {
+    let mut rollouts = Vec::new();
+    for (k, p) in paths.iter().enumerate() {
+        let rec = parse_table(&Table::read(p)?, opts)?;
+        rollouts.push(
+            to_rollout(&rec, k as u32 + 1, opts).with_context(|| format!("{}", p.display()))?,
+        );
+    }
+    Ok(Dataset {
+        rollouts,
+        sidecar: Sidecar {
+            set: "measured".into(),
+            seed: None,
+            dt: opts.dt,
+            rollouts: Vec::new(),
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_differentiator_is_exact_on_a_parabola_and_close_on_a_sine() {
+        // A quadratic's derivative is linear: the least-squares slope over a
+        // symmetric window is exact (up to rounding) away from the ends.
+        let h = 0.001;
+        let th: Vec<f64> = (0..200)
+            .map(|k| {
+                let t = k as f64 * h;
+                3.0 * t * t - t
+            })
+            .collect();
+        let (_, d) = differentiate(&th, h, 10);
+        for (k, v) in d.iter().enumerate().skip(10).take(180) {
+            let want = 6.0 * k as f64 * h - 1.0;
+            assert!((v - want).abs() < 1e-9, "{k}: {v} vs {want}");
+        }
+        // sin(10 t) sampled at 1 kHz, window +-10 ms: the attenuation is
+        // sinc-like, 1 - (w m h)^2 / 6 ... about 0.17%; 0.5% is asserted.
+        let th: Vec<f64> = (0..1000).map(|k| (10.0 * k as f64 * h).sin()).collect();
+        let (s, d) = differentiate(&th, h, 10);
+        for k in (20..980).step_by(37) {
+            let t = k as f64 * h;
+            assert!((d[k] - 10.0 * (10.0 * t).cos()).abs() < 0.05, "rate at {k}");
+            assert!((s[k] - (10.0 * t).sin()).abs() < 0.005, "angle at {k}");
+        }
+    }
+
+    #[test]
+    fn the_encoder_format_is_read_in_degrees_at_its_rate() {
+        let text = "trigger_start_deg, sample_rate, duration_sec\n90, 1000, 5 \n-90.0\n-89.0\n-88.0\n\n-87.0\n";
+        let r = parse(Path::new("x.txt"), text, &ImportOptions::default()).unwrap();
+        assert_eq!(r.t, [0.0, 0.001, 0.002, 0.003]);
+        assert!((r.theta[0] + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(r.theta_dot.is_none());
+        let bad = "trigger_start_deg, sample_rate, duration_sec\n90, 1000, 5\n-90.0\nabc\n";
+        let e = parse(Path::new("x.txt"), bad, &ImportOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("x.txt:4"), "{e}");
+    }
+
+    #[test]
+    fn a_plain_csv_is_resampled_and_trimmed() {
+        let mut text = String::from("t,theta,theta_dot\n");
+        for k in 0..=100 {
+            let t = k as f64 * 0.01;
+            text.push_str(&format!("{t},{},{}\n", 2.0 * t, 2.0));
+        }
+        let opts = ImportOptions {
+            unit: Unit::Radians,
+            start: 0.1,
+            duration: Some(0.5),
+            ..ImportOptions::default()
+        };
+        let rec = parse(Path::new("p.csv"), &text, &opts).unwrap();
+        let r = to_rollout(&rec, 7, &opts).unwrap();
+        assert_eq!(r.id, 7);
+        assert_eq!(r.xs.len(), 11); // 0.1 .. 0.6 every 0.05
+        for (t, x) in r.t.iter().zip(&r.xs) {
+            assert!((x[0] - 2.0 * (t + 0.1)).abs() < 1e-9);
+            assert_eq!(x[1], 2.0);
+        }
+        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n0,2\n", &opts).unwrap_err();
+        assert!(e.to_string().contains("p.csv:3"), "{e}");
+    }
+}

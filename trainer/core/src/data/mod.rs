@@ -1,0 +1,98 @@
+//! Data sets: rollouts of `(theta, theta_dot)` with their truth, made by
+//! [`generate`] or read from files.
+//!
+//! Files come in two kinds, each with one reader:
+//! - the project's CSV `rollout,t,theta,theta_dot` with a JSON sidecar of
+//!   the truth ([`project_csv`]);
+//! - a user's recording in its own layout ([`import`]), which becomes a
+//!   [`Dataset`] on the model's time grid.
+//!
+//! Both parse delimited text through [`table`] (the `csv` crate), so every
+//! error names the file and line.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+pub mod generate;
+pub mod import;
+pub mod project_csv;
+pub mod table;
+
+pub use generate::{Physics, test_set, training_set, training_set_with};
+pub use project_csv::{CSV_HEADER, read, sidecar_path, to_csv, write};
+pub use table::CsvError;
+
+/// One rollout's ground truth, as the sidecar stores it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RolloutMeta {
+    /// Id as in the CSV's `rollout` column.
+    pub rollout: u32,
+    /// Rod length, m.
+    pub length: f64,
+    /// Initial angle, rad.
+    pub theta0: f64,
+    /// Undeclared effects present, name -> coefficient.
+    #[serde(default)]
+    pub effects: BTreeMap<String, f64>,
+}
+
+/// The JSON sidecar of a CSV.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Sidecar {
+    /// `"train"`, `"test"` or `"measured"`.
+    pub set: String,
+    /// Seed the set was drawn with (None for measured data).
+    pub seed: Option<u64>,
+    /// Observation interval, s.
+    pub dt: f64,
+    /// Truth per rollout.
+    pub rollouts: Vec<RolloutMeta>,
+}
+
+/// A rollout's observations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rollout {
+    /// Id as in the CSV.
+    pub id: u32,
+    /// Times, s.
+    pub t: Vec<f64>,
+    /// `(theta, theta_dot)` per observation.
+    pub xs: Vec<[f64; 2]>,
+}
+
+/// Rollouts with their truth (when known).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    /// The observations.
+    pub rollouts: Vec<Rollout>,
+    /// Truth and provenance.
+    pub sidecar: Sidecar,
+}
+
+impl Dataset {
+    /// The truth of rollout `id`, if the sidecar has it.
+    pub fn meta(&self, id: u32) -> Option<&RolloutMeta> {
+        self.sidecar.rollouts.iter().find(|m| m.rollout == id)
+    }
+}
+
+/// Rollout states as the estimator takes them (`f32`).
+pub fn states_f32(xs: &[[f64; 2]]) -> Vec<estimator::State> {
+    xs.iter().map(|x| [x[0] as f32, x[1] as f32]).collect()
+}
+
+/// Reads what a user gives: one project CSV as it is (at least 8 rows per
+/// rollout), else recordings to import (rollouts `1..`).
+pub fn read_inputs(inputs: &[PathBuf], opts: &import::ImportOptions) -> anyhow::Result<Dataset> {
+    if let [one] = inputs {
+        let head = std::fs::read_to_string(one)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", one.display()))?;
+        if head.starts_with(CSV_HEADER) {
+            return read(one, 8);
+        }
+    }
+    import::import(inputs, opts)
+}
+

@@ -1,0 +1,186 @@
+//! The project's CSV, `rollout,t,theta,theta_dot` (simulated and imported
+//! data alike), and its JSON sidecar of each rollout's truth.
+
+use std::path::{Path, PathBuf};
+
+use super::table::{CsvError, Table};
+use super::{Dataset, Rollout, Sidecar};
+use crate::io::write_atomic;
+use crate::protocol::{DT, ROLLOUT_LEN};
+
+/// The CSV header line.
+pub const CSV_HEADER: &str = "rollout,t,theta,theta_dot";
+
+/// The CSV text of a data set.
+pub fn to_csv(ds: &Dataset) -> String {
+    let mut s = String::with_capacity(ds.rollouts.len() * ROLLOUT_LEN * 48);
+    s.push_str(CSV_HEADER);
+    s.push('\n');
+    for r in &ds.rollouts {
+        for (t, x) in r.t.iter().zip(&r.xs) {
+            s.push_str(&format!("{},{:.6},{},{}\n", r.id, t, x[0], x[1]));
+        }
+    }
+    s
+}
+
+/// Sidecar path of a CSV: the same stem with `.json`.
+pub fn sidecar_path(csv: &Path) -> PathBuf {
+    csv.with_extension("json")
+}
+
+/// Writes `NAME.csv` and `NAME.json` in `dir`, atomically each.
+pub fn write(ds: &Dataset, dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
+    std::fs::create_dir_all(dir)?;
+    let csv = dir.join(format!("{name}.csv"));
+    write_atomic(&csv, to_csv(ds).as_bytes())?;
+    write_atomic(
+        &sidecar_path(&csv),
+        serde_json::to_string_pretty(&ds.sidecar)?.as_bytes(),
+    )?;
+    Ok(csv)
+}
+
+/// Parses the project's CSV from its [`Table`]. Rows of one rollout must be
+/// contiguous with increasing `t`; every value finite; each rollout at
+/// least `min_rows`.
+pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvError> {
+    if table.header != ["rollout", "t", "theta", "theta_dot"] {
+        return Err(table.error(
+            1,
+            format!(
+                "header is {:?}, expected {CSV_HEADER:?}",
+                table.header.join(",")
+            ),
+        ));
+    }
+    let mut out: Vec<Rollout> = Vec::new();
+    for row in &table.rows {
+        let n = row.line;
+        if row.fields.len() != 4 {
+            return Err(table.error(n, format!("expected 4 columns, found {}", row.fields.len())));
+        }
+        let id: u32 = row.fields[0]
+            .parse()
+            .map_err(|_| table.error(n, format!("rollout {:?} is not an id", row.fields[0])))?;
+        let v = [
+            table.number(row, 1, "t")?,
+            table.number(row, 2, "theta")?,
+            table.number(row, 3, "theta_dot")?,
+        ];
+        match out.last_mut() {
+            Some(r) if r.id == id => {
+                if let Some(&last) = r.t.last()
+                    && v[0] <= last
+                {
+                    return Err(table.error(
+                        n,
+                        format!("t {} does not increase (previous {last})", v[0]),
+                    ));
+                }
+                r.t.push(v[0]);
+                r.xs.push([v[1], v[2]]);
+            }
+            _ => {
+                if out.iter().any(|r| r.id == id) {
+                    return Err(table.error(
+                        n,
+                        format!("rollout {id} appears again after another rollout"),
+                    ));
+                }
+                out.push(Rollout {
+                    id,
+                    t: vec![v[0]],
+                    xs: vec![[v[1], v[2]]],
+                });
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(table.error(0, "no data rows"));
+    }
+    if let Some(r) = out.iter().find(|r| r.xs.len() < min_rows) {
+        return Err(table.error(
+            0,
+            format!(
+                "rollout {} has {} rows, at least {min_rows} needed",
+                r.id,
+                r.xs.len()
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+/// Reads a CSV and its sidecar (a sidecar is optional for measured data).
+pub fn read(path: &Path, min_rows: usize) -> anyhow::Result<Dataset> {
+    let rollouts = parse_csv(&Table::read(path)?, min_rows)?;
+    let sc = sidecar_path(path);
+    let sidecar = if sc.exists() {
+        let s = std::fs::read_to_string(&sc)?;
+        serde_json::from_str(&s).map_err(|e| anyhow::anyhow!("{}: {e}", sc.display()))?
+    } else {
+        let dt = rollouts
+            .first()
+            .and_then(|r| r.t.get(1).zip(r.t.first()).map(|(b, a)| b - a))
+            .unwrap_or(DT);
+        Sidecar {
+            set: "measured".into(),
+            seed: None,
+            dt,
+            rollouts: Vec::new(),
+        }
+    };
+    Ok(Dataset { rollouts, sidecar })
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::test_set;
+
+    #[test]
+    fn csv_round_trips() {
+        let ds = test_set(1, &[2.0], &[]);
+        let text = to_csv(&ds);
+        let back = parse_csv(&Table::parse(Path::new("x.csv"), &text).unwrap(), 2).unwrap();
+        assert_eq!(back.len(), 10);
+        // f64 Display is the shortest string that parses back to the same bits.
+        assert_eq!(back[3].xs, ds.rollouts[3].xs);
+    }
+
+    #[test]
+    fn broken_lines_are_named() {
+        let p = Path::new("d.csv");
+        let cases = [
+            ("", 0, "empty"),
+            ("rollout,t,theta\n", 1, "header"),
+            ("rollout,t,theta,theta_dot\n0,0,1\n", 2, "columns"),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,abc,2\n",
+                3,
+                "not a number",
+            ),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.05,NaN,2\n",
+                3,
+                "finite",
+            ),
+            (
+                "rollout,t,theta,theta_dot\n0,0,1,2\n0,0.1,1,2\n0,0.05,1,2\n",
+                4,
+                "increase",
+            ),
+            ("rollout,t,theta,theta_dot\n0,0,1,2\n", 0, "rows"),
+        ];
+        for (text, line, word) in cases {
+            let e = Table::parse(p, text)
+                .and_then(|t| parse_csv(&t, 2))
+                .unwrap_err();
+            assert_eq!(e.line, line, "{text:?}: {e}");
+            assert!(e.to_string().contains(word), "{e}");
+            assert!(e.to_string().starts_with("d.csv"), "{e}");
+        }
+    }
+}

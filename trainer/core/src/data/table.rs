@@ -1,0 +1,164 @@
+//! Delimited text, read through the `csv` crate: a header of column names
+//! and rows of fields, each row with its 1-based line in the file, so
+//! that every problem names the file and line ([`CsvError`]).
+//!
+//! The separator is a comma, a tab or a semicolon, whichever the header
+//! line has most of. Blank lines are skipped; rows may have fewer or more
+//! fields than the header (the reader that asks for a field says which is
+//! missing).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A problem with a file, naming it and the line (1-based).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CsvError {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line, 0 when the problem is the whole file.
+    pub line: usize,
+    /// What is wrong.
+    pub problem: String,
+}
+
+impl CsvError {
+    /// A problem at `line` of `path` (0: the whole file).
+    pub fn new(path: &Path, line: usize, problem: impl Into<String>) -> CsvError {
+        CsvError {
+            path: path.to_path_buf(),
+            line,
+            problem: problem.into(),
+        }
+    }
+}
+
+impl fmt::Display for CsvError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}: {}", self.path.display(), self.problem)
+        } else {
+            write!(f, "{}:{}: {}", self.path.display(), self.line, self.problem)
+        }
+    }
+}
+
+impl std::error::Error for CsvError {}
+
+/// One data row: its line and its fields (trimmed).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// 1-based line in the file.
+    pub line: usize,
+    /// The fields.
+    pub fields: Vec<String>,
+}
+
+/// A file's header and rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// The file (for errors).
+    pub path: PathBuf,
+    /// The header's fields, trimmed, as written.
+    pub header: Vec<String>,
+    /// The data rows after the header.
+    pub rows: Vec<Row>,
+}
+
+/// The separator the header line uses most: `,`, tab or `;` (`,` when it
+/// has none).
+pub fn separator(header_line: &str) -> u8 {
+    [b',', b'\t', b';']
+        .into_iter()
+        .max_by_key(|&c| (header_line.bytes().filter(|&b| b == c).count(), c == b','))
+        .unwrap_or(b',')
+}
+
+impl Table {
+    /// Parses `text` (the contents of `path`): the first non-blank line is
+    /// the header.
+    pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
+        let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+        let mut reader = csv::ReaderBuilder::new()
+            .delimiter(separator(first))
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let mut header: Option<Vec<String>> = None;
+        let mut rows = Vec::new();
+        for rec in reader.records() {
+            let rec = rec.map_err(|e| {
+                let line = e.position().map_or(0, |p| p.line() as usize);
+                CsvError::new(path, line, format!("unreadable: {e}"))
+            })?;
+            let line = rec.position().map_or(0, |p| p.line() as usize);
+            if rec.iter().all(str::is_empty) {
+                continue;
+            }
+            let fields: Vec<String> = rec.iter().map(str::to_string).collect();
+            match header {
+                None => header = Some(fields),
+                Some(_) => rows.push(Row { line, fields }),
+            }
+        }
+        let header = header.ok_or_else(|| CsvError::new(path, 0, "empty file"))?;
+        Ok(Table {
+            path: path.to_path_buf(),
+            header,
+            rows,
+        })
+    }
+
+    /// Reads and parses the file at `path`.
+    pub fn read(path: &Path) -> Result<Table, CsvError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+        Table::parse(path, &text)
+    }
+
+    /// A problem at `line`.
+    pub fn error(&self, line: usize, problem: impl Into<String>) -> CsvError {
+        CsvError::new(&self.path, line, problem)
+    }
+
+    /// Field `k` of `row` as a finite number; `what` names it in errors.
+    pub fn number(&self, row: &Row, k: usize, what: &str) -> Result<f64, CsvError> {
+        let f = row
+            .fields
+            .get(k)
+            .ok_or_else(|| self.error(row.line, format!("missing {what} (column {})", k + 1)))?;
+        let v: f64 = f
+            .parse()
+            .map_err(|_| self.error(row.line, format!("{what} {f:?} is not a number")))?;
+        if !v.is_finite() {
+            return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
+        }
+        Ok(v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn separators_lines_and_blank_rows() {
+        let text = "\nt\ttheta [deg]\n0\t1\n\n0.1\t2\n";
+        let t = Table::parse(Path::new("a.tsv"), text).unwrap();
+        assert_eq!(t.header, ["t", "theta [deg]"]);
+        assert_eq!(t.rows.len(), 2);
+        // Lines are the file's: the header is on line 2, the last row on 5.
+        assert_eq!(t.rows[1].line, 5);
+        assert_eq!(t.number(&t.rows[1], 1, "theta").unwrap(), 2.0);
+        let e = t.number(&t.rows[1], 2, "rate").unwrap_err();
+        assert_eq!(e.to_string(), "a.tsv:5: missing rate (column 3)");
+        assert_eq!(separator("a;b;c"), b';');
+        assert_eq!(separator("a,b"), b',');
+        assert_eq!(separator("single"), b',');
+        let e = Table::parse(Path::new("e.csv"), " \n\n").unwrap_err();
+        assert_eq!(e.to_string(), "e.csv: empty file");
+        let t = Table::parse(Path::new("n.csv"), "t,x\n0,NaN\n1,abc\n").unwrap();
+        assert!(t.number(&t.rows[0], 1, "x").unwrap_err().to_string().starts_with("n.csv:2: x is NaN"));
+        assert!(t.number(&t.rows[1], 1, "x").unwrap_err().to_string().contains("n.csv:3: x \"abc\" is not a number"));
+    }
+}

@@ -1,0 +1,25 @@
+//! The host side of the project that needs no burn: the protocol's
+//! constants, the pendulum and its effects, data sets and the readers of
+//! users' files, the metrics, the diagnosis of what a model leaves, the
+//! f64 reference filter and the benchmarks' inputs.
+//!
+//! Data walks one way through the modules (each uses only those above it):
+//!
+//! ```text
+//! protocol -> physics -> data -> metrics -> diagnose
+//!                               \-> reference, bench
+//! io, plot: helpers that know no domain type
+//! ```
+//!
+//! The `trainer` crate (burn) builds on this; the host tests use this
+//! alone.
+
+pub mod bench;
+pub mod data;
+pub mod diagnose;
+pub mod io;
+pub mod metrics;
+pub mod physics;
+pub mod plot;
+pub mod protocol;
+pub mod reference;

@@ -1,0 +1,50 @@
+//! `koopman close-loop`: the whole loop on measured data.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use trainer::closeloop::{self, CloseLoopOptions};
+
+use super::RecordingArgs;
+
+/// The whole loop on measured data: import, train the declared model
+/// around it, diagnose, add the effect found, retrain, report before and
+/// after.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Recordings (imported as by `koopman import`) or one project CSV.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Output directory (runs, blobs, report.md, report.json, figures).
+    #[arg(long, default_value = "runs/close-loop")]
+    out: PathBuf,
+    /// Gravity of the physics, m/s^2.
+    #[arg(long, default_value_t = trainer_core::protocol::G)]
+    g: f64,
+    /// Training iterations of each model.
+    #[arg(long, default_value_t = 3000)]
+    iterations: usize,
+    /// Seed of both trainings.
+    #[arg(long, default_value_t = 42)]
+    seed: u64,
+    /// No progress bars.
+    #[arg(long)]
+    quiet: bool,
+    #[command(flatten)]
+    recording: RecordingArgs,
+}
+
+/// Runs it.
+pub fn run(a: Args) -> Result<()> {
+    let opts = CloseLoopOptions {
+        import: a.recording.options()?,
+        g: a.g,
+        iterations: a.iterations,
+        seed: a.seed,
+        quiet: a.quiet,
+    };
+    let r = closeloop::close_loop(&a.inputs, &a.out, &opts)?;
+    print!("{}", closeloop::markdown(&r));
+    println!("\nwrote {}", a.out.display());
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! The `koopman` commands, one module each: its arguments (clap) and what
+//! it runs. Each is a thin layer over the library; the shared helpers are
+//! here.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+pub mod bench;
+pub mod close_loop;
+pub mod diagnose;
+pub mod estimate;
+pub mod evaluate;
+pub mod export;
+pub mod generate;
+pub mod import;
+pub mod train;
+
+/// The bytes of a weights blob, with the path in the error.
+pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))
+}
+
+/// A blob read as a model, its typed error naming the file.
+pub fn model<'a>(path: &Path, bytes: &'a [u8]) -> Result<estimator::Model<'a>> {
+    estimator::Model::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+/// The angle unit of a recording, as the command line spells it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Unit {
+    /// Degrees.
+    Degrees,
+    /// Radians.
+    Radians,
+}
+
+impl From<Unit> for trainer_core::data::import::Unit {
+    fn from(u: Unit) -> Self {
+        match u {
+            Unit::Degrees => trainer_core::data::import::Unit::Degrees,
+            Unit::Radians => trainer_core::data::import::Unit::Radians,
+        }
+    }
+}
+
+/// How to read a user's recording: the options `import`, `diagnose` and
+/// `close-loop` share.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RecordingArgs {
+    /// Angle unit of a plain CSV (the encoder format is in degrees).
+    #[arg(long, value_enum, default_value_t = Unit::Radians)]
+    pub unit: Unit,
+    /// Sample rate, Hz, of a plain CSV without a time column.
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// The time column: a header name (case and a unit in brackets
+    /// ignored) or a 1-based number (default: t, time, timestamp, time_s).
+    #[arg(long)]
+    pub time_column: Option<String>,
+    /// The angle column (default: theta, angle, phi).
+    #[arg(long)]
+    pub angle_column: Option<String>,
+    /// The rate column, if the file has one (default: theta_dot, omega,
+    /// angular_velocity).
+    #[arg(long)]
+    pub rate_column: Option<String>,
+    /// Output interval, s (the model's dt).
+    #[arg(long, default_value_t = trainer_core::protocol::DT)]
+    pub dt: f64,
+    /// Drop the first S seconds.
+    #[arg(long, default_value_t = 0.0)]
+    pub start: f64,
+    /// Keep at most S seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Half-width of the smoothing differentiator's window, s.
+    #[arg(long, default_value_t = 0.01)]
+    pub smooth: f64,
+}
+
+impl RecordingArgs {
+    /// The import options, checked.
+    pub fn options(&self) -> Result<trainer_core::data::import::ImportOptions> {
+        anyhow::ensure!(
+            self.dt > 0.0 && self.smooth >= 0.0 && self.start >= 0.0,
+            "--dt must be positive, --smooth and --start not negative"
+        );
+        anyhow::ensure!(
+            self.rate.is_none_or(|r| r > 0.0 && r.is_finite()),
+            "--rate must be a positive number"
+        );
+        Ok(trainer_core::data::import::ImportOptions {
+            unit: self.unit.into(),
+            rate: self.rate,
+            dt: self.dt,
+            start: self.start,
+            duration: self.duration,
+            smooth: self.smooth,
+            columns: trainer_core::data::import::Columns {
+                time: self.time_column.clone(),
+                angle: self.angle_column.clone(),
+                rate: self.rate_column.clone(),
+            },
+        })
+    }
+}

@@ -1,0 +1,131 @@
+//! `koopman train`: a run of the KLM or a baseline.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use trainer::learn::config::{ModelKind, TrainConfig};
+use trainer::learn::run::RunPaths;
+use trainer::learn::train;
+use trainer_core::physics::EffectRange;
+use trainer_core::protocol::ROLLOUT_LEN;
+
+/// Trains the KLM (or a baseline) into a run directory.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Run directory (config, checkpoints, log).
+    #[arg(long, default_value = "runs/pendulum")]
+    run: PathBuf,
+    /// The model to train (its defaults apply unless --config is given).
+    #[arg(long, value_enum, default_value_t = ModelKind::Klm)]
+    model: ModelKind,
+    /// Continue the run in --run from its last checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Seed of data and initialisation.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Optimiser steps.
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// Windows per batch.
+    #[arg(long)]
+    batch: Option<usize>,
+    /// Training window, observations.
+    #[arg(long)]
+    window: Option<usize>,
+    /// A config file (JSON, TrainConfig) to start from.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Training lengths, m.
+    #[arg(long, value_delimiter = ',')]
+    lengths: Option<Vec<f64>>,
+    /// Gravity of the simulated data, m/s^2.
+    #[arg(long)]
+    g: Option<f64>,
+    /// Observation interval, s.
+    #[arg(long)]
+    dt: Option<f64>,
+    /// Range of the initial angle, rad: LO,HI.
+    #[arg(long, value_delimiter = ',')]
+    theta0: Option<Vec<f64>>,
+    /// An effect as the second physical parameter, NAME:LO..HI (its
+    /// coefficient drawn per rollout), e.g. viscous:0..0.5.
+    #[arg(long, value_parser = EffectRange::parse)]
+    effect: Option<EffectRange>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+impl Args {
+    /// The run's config: the file or the model's defaults, with the flags
+    /// given, checked.
+    fn config(&self) -> Result<TrainConfig> {
+        let mut cfg = match &self.config {
+            Some(p) => serde_json::from_str(
+                &std::fs::read_to_string(p).with_context(|| format!("{}", p.display()))?,
+            )
+            .with_context(|| format!("{}", p.display()))?,
+            None => TrainConfig::for_model(self.model),
+        };
+        if let Some(v) = self.seed {
+            cfg.seed = v;
+        }
+        if let Some(v) = self.iterations {
+            cfg.iterations = v;
+        }
+        if let Some(v) = self.batch {
+            cfg.batch = v;
+        }
+        if let Some(v) = self.window {
+            cfg.window = v;
+        }
+        if let Some(v) = &self.lengths {
+            cfg.lengths = v.clone();
+        }
+        if let Some(v) = self.g {
+            cfg.g = v;
+        }
+        if let Some(v) = self.dt {
+            cfg.dt = v;
+        }
+        if let Some(v) = &self.theta0 {
+            let [lo, hi] = v[..] else {
+                anyhow::bail!("--theta0 takes two angles, LO,HI");
+            };
+            anyhow::ensure!(lo <= hi, "--theta0: LO must not exceed HI");
+            cfg.theta0 = [lo, hi];
+        }
+        if self.effect.is_some() {
+            cfg.effect = self.effect.clone();
+        }
+        anyhow::ensure!(
+            !cfg.lengths.is_empty() && cfg.lengths.iter().all(|l| *l > 0.0),
+            "lengths must be positive"
+        );
+        anyhow::ensure!(cfg.g > 0.0 && cfg.dt > 0.0, "g and dt must be positive");
+        anyhow::ensure!(
+            cfg.window >= 2 && cfg.window <= ROLLOUT_LEN,
+            "window must be in 2..={ROLLOUT_LEN}"
+        );
+        Ok(cfg)
+    }
+}
+
+/// Runs it.
+pub fn run(a: Args) -> Result<()> {
+    let cfg = a.config()?;
+    let state = train::train(&a.run, cfg, a.resume, a.quiet)?;
+    println!(
+        "trained {} iterations in {:.1} s ({:.4} s/iteration); last batch losses {:.3e} (parts {:.3e} {:.3e} {:.3e}, named in {})",
+        state.iteration,
+        state.train_seconds,
+        state.train_seconds / state.iteration.max(1) as f64,
+        state.last_losses[0],
+        state.last_losses[1],
+        state.last_losses[2],
+        state.last_losses[3],
+        RunPaths::new(&a.run).log.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,91 @@
+//! `before_after.png`: the closed loop's figure.
+
+use std::path::Path;
+
+use anyhow::Result;
+use estimator::Model;
+use plotters::prelude::*;
+use trainer_core::data::Dataset;
+use trainer_core::plot::{COLOURS, Curve, bounds, err, legend, png};
+
+use super::CloseLoopReport;
+
+/// `before_after.png`: per recording, the measured angle against the
+/// simulations of the declared model and of the model with the effect, each
+/// from `x_0` with its filter's estimate after 64 measurements.
+pub fn close_loop(
+    path: &Path,
+    ds: &Dataset,
+    before: &Model<'_>,
+    after: Option<&Model<'_>>,
+    report: &CloseLoopReport,
+) -> Result<()> {
+    let n = ds.rollouts.len().max(1);
+    let root = png(path, (1400, 280 * n as u32))?;
+    let areas = root.split_evenly((n, 1));
+    let dt = ds.sidecar.dt;
+    for ((area, r), score) in areas.iter().zip(&ds.rollouts).zip(&report.recordings) {
+        let x0 = [r.xs[0][0] as f32, r.xs[0][1] as f32];
+        let sim = |m: &Model<'_>, p: [f32; 2]| -> Result<Vec<(f64, f64)>> {
+            let mut out = vec![[0.0f32; 2]; r.xs.len() - 1];
+            m.simulate(&x0, &p, &mut out)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            Ok(out
+                .iter()
+                .enumerate()
+                .map(|(t, x)| ((t + 1) as f64 * dt, x[0] as f64))
+                .collect())
+        };
+        let mut curves: Vec<Curve> = vec![(
+            "measured",
+            r.xs.iter()
+                .enumerate()
+                .map(|(t, x)| (t as f64 * dt, x[0]))
+                .collect(),
+            BLACK.stroke_width(2),
+        )];
+        curves.push((
+            "declared model",
+            sim(before, [score.length_before, 0.0])?,
+            COLOURS[0].stroke_width(2),
+        ));
+        if let (Some(m), Some(l), Some(c)) = (after, score.length_after, score.coefficient_after) {
+            curves.push((
+                "with the effect",
+                sim(m, [l, c])?,
+                COLOURS[2].stroke_width(2),
+            ));
+        }
+        let (y0, y1) = bounds(curves.iter().flat_map(|c| c.1.iter().map(|p| p.1)));
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!(
+                    "{}: error {:.3} before, {} after",
+                    score.source.rsplit('/').next().unwrap_or(&score.source),
+                    score.error_before,
+                    score.error_after.map_or("-".into(), |e| format!("{e:.3}"))
+                ),
+                ("sans-serif", 18),
+            )
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(55)
+            .build_cartesian_2d(0f64..r.xs.len() as f64 * dt, y0..y1)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("t (s)")
+            .y_desc("theta (rad)")
+            .draw()
+            .map_err(err)?;
+        for (name, pts, style) in curves {
+            chart
+                .draw_series(LineSeries::new(pts, style))
+                .map_err(err)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    }
+    root.present().map_err(err)
+}

@@ -1,0 +1,206 @@
+//! Export: a trained run becomes one weights blob (see `estimator::blob`),
+//! with its settings and calibration in a JSON file beside it.
+//!
+//! - [`refit`]: `F` refitted once over every training transition with the
+//!   trained encoder; `R` and the latent part of `Q` scale the
+//!   per-dimension variance of the one-step latent residual.
+//! - [`schedule`]: the gain schedule over the estimation window, and its
+//!   checks.
+//! - [`blob`]: the arena and the serialised blob.
+//! - here: the filter's settings and the trust threshold, calibrated by
+//!   running the estimator crate's own filter on the training rollouts.
+//! - [`baseline`]: the CBM's and MLP's burnpacks with their sidecars.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use estimator::blob::{FilterSpec, ParamSpec, Reading};
+use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model, PARAM_DIM};
+use serde::Serialize;
+use trainer_core::data::states_f32;
+use trainer_core::io::write_atomic;
+use trainer_core::protocol::{BURN_IN, WINDOW};
+
+pub mod baseline;
+pub mod blob;
+pub mod refit;
+pub mod schedule;
+
+use crate::learn::config::{ModelKind, TrainConfig};
+use crate::learn::model::Klm;
+use crate::learn::run::{self, RunPaths, device, load_model, training_data};
+use blob::{BlobParts, blob_bytes};
+use refit::global_koopman;
+use schedule::ScheduleCheck;
+
+/// What an export measured, saved beside the blob.
+#[derive(Debug, Serialize)]
+pub struct ExportInfo {
+    /// The run's config.
+    pub config: TrainConfig,
+    /// The run's state at export.
+    pub iteration: usize,
+    /// Training wall time, s.
+    pub train_seconds: f64,
+    /// One-step latent residual variance per dimension.
+    pub residual_var: Vec<f32>,
+    /// Sigma per training rollout's estimation window: max and median.
+    pub train_sigma_max: f32,
+    /// Median of the same.
+    pub train_sigma_median: f32,
+    /// The calibrated threshold.
+    pub sigma_threshold: f32,
+    /// Blob size, bytes.
+    pub blob_bytes: usize,
+    /// Updates in the blob's gain schedule.
+    pub schedule_steps: u16,
+    /// How the schedule and its tail were checked.
+    pub schedule_check: ScheduleCheck,
+}
+
+/// Sigma of the length corrections over the protocol's estimation window.
+pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
+    let n = WINDOW.min(xs.len());
+    let out = estimator::filter::run(&mut Estimator::new(model), &states_f32(&xs[..n]))?;
+    Ok(out.sigma[0])
+}
+
+/// Exports KLM run `dir` to the blob `out`, with a gain schedule over the
+/// protocol's estimation window ([`WINDOW`] measurements, so
+/// `WINDOW - 1` updates).
+pub fn export(dir: &Path, out: &Path) -> Result<ExportInfo> {
+    export_with(dir, out, &ExportOptions::default())
+}
+
+/// How [`export_with`] departs from the run's own settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExportOptions {
+    /// Updates of the gain schedule (0: none).
+    pub schedule_steps: u16,
+    /// The filter's latent `Q` and `R` scales in place of the run's
+    /// `q_latent` and `r_latent` (the filter is fitted at export, so it is
+    /// tuned without retraining; the config saved beside the blob says
+    /// which were used).
+    pub q_latent: Option<f64>,
+    /// See `q_latent`.
+    pub r_latent: Option<f64>,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            schedule_steps: (WINDOW - 1) as u16,
+            q_latent: None,
+            r_latent: None,
+        }
+    }
+}
+
+/// Exports KLM run `dir` to the blob `out` with `opts`.
+pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportInfo> {
+    let paths = RunPaths::new(dir);
+    let (mut cfg, state) = run::read(dir)?;
+    cfg.q_latent = opts.q_latent.unwrap_or(cfg.q_latent);
+    cfg.r_latent = opts.r_latent.unwrap_or(cfg.r_latent);
+    let schedule_steps = opts.schedule_steps;
+    anyhow::ensure!(
+        cfg.model == ModelKind::Klm,
+        "{}: a {:?} run exports with export_baseline",
+        dir.display(),
+        cfg.model
+    );
+    let device = device();
+    let model: Klm = load_model(&paths, &cfg, &device)?;
+    let ds = training_data(&cfg);
+    let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
+    let mut parts = BlobParts::new(&model.enc, &model.dec, &f);
+    let params = [
+        cfg.length_spec(),
+        match &cfg.effect {
+            Some(e) => ParamSpec {
+                name: e.name.name(),
+                declared: true,
+                train_range: [e.range[0] as f32, e.range[1] as f32],
+                reading: Reading::Direct,
+            },
+            None => ParamSpec {
+                name: "none",
+                declared: false,
+                train_range: [0.0, 0.0],
+                reading: Reading::Direct,
+            },
+        },
+    ];
+    let mut q = [0.0f32; AUG_DIM];
+    let mut r = [0.0f32; LATENT_DIM];
+    let mut prior_var = [0.0f32; AUG_DIM];
+    for k in 0..LATENT_DIM {
+        q[k] = (cfg.q_latent as f32) * residual_var[k];
+        r[k] = (cfg.r_latent as f32) * residual_var[k];
+        prior_var[k] = residual_var[k];
+    }
+    prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
+    if let Some(e) = &cfg.effect {
+        let std = if cfg.prior_std_effect > 0.0 {
+            cfg.prior_std_effect
+        } else {
+            e.range[0]
+                .abs()
+                .max(e.range[1].abs())
+                .max(f64::MIN_POSITIVE)
+        };
+        prior_var[LATENT_DIM + 1] = (std * std) as f32;
+    }
+    let mut filter = FilterSpec {
+        q,
+        r,
+        prior_mean: [0.0; PARAM_DIM],
+        prior_var,
+        burn_in: BURN_IN,
+        sigma_threshold: 1.0,
+        schedule_steps,
+    };
+    let schedule_check = parts.set_schedule(&filter)?;
+    // Calibrate: sigma over every training rollout's estimation window.
+    let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut sigmas = ds
+        .rollouts
+        .iter()
+        .map(|r| window_sigma(&m, &r.xs))
+        .collect::<Result<Vec<_>>>()?;
+    sigmas.sort_by(f32::total_cmp);
+    let max = *sigmas.last().context("no training rollouts")?;
+    filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
+    let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    Model::from_bytes(&bytes)
+        .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
+    write_atomic(out, &bytes)?;
+    let info = ExportInfo {
+        config: cfg,
+        iteration: state.iteration,
+        train_seconds: state.train_seconds,
+        residual_var: residual_var.to_vec(),
+        train_sigma_max: max,
+        train_sigma_median: sigmas[sigmas.len() / 2],
+        sigma_threshold: filter.sigma_threshold,
+        blob_bytes: bytes.len(),
+        schedule_steps,
+        schedule_check,
+    };
+    write_atomic(
+        &out.with_extension("json"),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )?;
+    Ok(info)
+}
+
+/// The training config in a blob's sidecar (the JSON file beside it that
+/// [`export_with`] writes); the default config when it cannot be read.
+pub fn config_of(blob: &Path) -> TrainConfig {
+    std::fs::read_to_string(blob.with_extension("json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+        .and_then(|v| serde_json::from_value::<TrainConfig>(v.get("config")?.clone()).ok())
+        .unwrap_or_default()
+}

@@ -1,0 +1,229 @@
+//! The KLM on burn: encoder `phi` and decoder `phi^-1` MLPs, and the
+//! Koopman matrix fitted by ridge least squares inside every batch.
+
+use burn::module::Module;
+use burn::nn::{Linear, LinearConfig};
+use burn::tensor::activation::{relu, tanh};
+use burn::tensor::{Device, Tensor};
+use estimator::blob::Activation;
+
+use super::config::{ModelKind, TrainConfig};
+use super::lstsq;
+
+/// A 3-layer MLP `d_in -> h -> h -> d_out`.
+#[derive(Module, Debug)]
+pub struct Mlp {
+    /// Input layer.
+    pub l0: Linear,
+    /// Hidden layer.
+    pub l1: Linear,
+    /// Output layer (no activation).
+    pub l2: Linear,
+}
+
+impl Mlp {
+    /// New MLP with burn's default initialisation.
+    pub fn new(d_in: usize, hidden: usize, d_out: usize, device: &Device) -> Self {
+        Mlp {
+            l0: LinearConfig::new(d_in, hidden).init(device),
+            l1: LinearConfig::new(hidden, hidden).init(device),
+            l2: LinearConfig::new(hidden, d_out).init(device),
+        }
+    }
+
+    /// Forward pass over the last dimension.
+    pub fn forward<const D: usize>(&self, x: Tensor<D>, act: Activation) -> Tensor<D> {
+        let a = |t: Tensor<D>| match act {
+            Activation::Relu => relu(t),
+            Activation::Tanh => tanh(t),
+        };
+        let h = a(self.l0.forward(x));
+        let h = a(self.l1.forward(h));
+        self.l2.forward(h)
+    }
+}
+
+/// Encoder and decoder.
+#[derive(Module, Debug)]
+pub struct Klm {
+    /// `phi`: state -> latent.
+    pub enc: Mlp,
+    /// `phi^-1`: latent -> state.
+    pub dec: Mlp,
+}
+
+impl Klm {
+    /// New model.
+    pub fn new(state: usize, hidden: usize, latent: usize, device: &Device) -> Self {
+        Klm {
+            enc: Mlp::new(state, hidden, latent, device),
+            dec: Mlp::new(latent, hidden, state, device),
+        }
+    }
+}
+
+/// The losses of one batch.
+pub struct Losses {
+    /// Total, to minimise.
+    pub total: Tensor<1>,
+    /// Its parts, named by [`Trainable::PARTS`]. For the Koopman models:
+    /// reconstruction `|phi^-1(phi(x)) - x|^2`, multi-step prediction in state
+    /// space, multi-step prediction in latent space.
+    pub parts: [Tensor<1>; 3],
+}
+
+/// What the training loop needs of a model.
+pub trait Trainable: Module + Sized {
+    /// Names of [`Losses::parts`], for the log.
+    const PARTS: [&'static str; 3];
+    /// A freshly initialised model for a config.
+    fn init(cfg: &TrainConfig, device: &Device) -> Self;
+    /// The losses of one batch: windows `x` `[B, T, 2]`, parameters `p` `[B, 2]`.
+    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses;
+}
+
+impl Trainable for Klm {
+    const PARTS: [&'static str; 3] = ["rec", "pred", "lin"];
+    fn init(cfg: &TrainConfig, device: &Device) -> Self {
+        Klm::new(2, cfg.hidden, estimator::LATENT_DIM, device)
+    }
+    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
+        let p = (cfg.model == ModelKind::Klm).then_some(p);
+        self.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin)
+    }
+}
+
+impl Trainable for Regressor {
+    const PARTS: [&'static str; 3] = ["mse", "mae", "unused"];
+    fn init(cfg: &TrainConfig, device: &Device) -> Self {
+        Regressor::new(cfg.window, cfg.hidden, device)
+    }
+    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
+        self.losses(x, p, cfg.activation)
+    }
+}
+
+/// `[K^T]` split into its parts: `y_{t+1} = y_t A^T + p C^T`.
+pub struct Koopman {
+    /// `A^T`, `[latent, latent]`.
+    pub at: Tensor<2>,
+    /// `C^T`, `[params, latent]`; `None` for the CBM, whose state has no `p`.
+    pub ct: Option<Tensor<2>>,
+}
+
+/// Fits `y_{t+1} = [y_t, p] K^T` (or `y_t A^T` without `p`) by ridge least
+/// squares over every transition of the batch. `y` is `[B, T, latent]`, `p`
+/// is `[B, P]`.
+pub fn fit_koopman(y: Tensor<3>, p: Option<Tensor<2>>, ridge: f64) -> Koopman {
+    let [b, t, l] = y.dims();
+    let g_y = y
+        .clone()
+        .slice([0..b, 0..t - 1, 0..l])
+        .reshape([b * (t - 1), l]);
+    let target = y.slice([0..b, 1..t, 0..l]).reshape([b * (t - 1), l]);
+    match p {
+        Some(p) => {
+            let [_, np] = p.dims();
+            let g_p = p
+                .unsqueeze_dim::<3>(1)
+                .expand([b, t - 1, np])
+                .reshape([b * (t - 1), np]);
+            let g = Tensor::cat(vec![g_y, g_p], 1);
+            let kt = lstsq::ridge(g, target, ridge); // [l + np, l]
+            Koopman {
+                at: kt.clone().slice([0..l, 0..l]),
+                ct: Some(kt.slice([l..l + np, 0..l])),
+            }
+        }
+        None => Koopman {
+            at: lstsq::ridge(g_y, target, ridge),
+            ct: None,
+        },
+    }
+}
+
+/// Rolls `y_0` (`[B, latent]`) forward `steps` times; returns `[B, steps, latent]`.
+pub fn rollout(k: &Koopman, y0: Tensor<2>, p: Option<Tensor<2>>, steps: usize) -> Tensor<3> {
+    let c = match (&k.ct, p) {
+        (Some(ct), Some(p)) => Some(p.matmul(ct.clone())),
+        _ => None,
+    };
+    let mut y = y0;
+    let mut out = Vec::with_capacity(steps);
+    for _ in 0..steps {
+        y = y.matmul(k.at.clone());
+        if let Some(c) = &c {
+            y = y + c.clone();
+        }
+        out.push(y.clone());
+    }
+    Tensor::stack(out, 1)
+}
+
+impl Klm {
+    /// Losses of one batch: `x` `[B, T, state]` normalised, `p` `[B, P]`
+    /// (`None` for the CBM: `K` over the latent alone).
+    pub fn losses(
+        &self,
+        x: Tensor<3>,
+        p: Option<Tensor<2>>,
+        act: Activation,
+        ridge: f64,
+        w_lin: f64,
+    ) -> Losses {
+        let [b, t, s] = x.dims();
+        let y = self.enc.forward(x.clone(), act);
+        let [_, _, l] = y.dims();
+        let x_rec = self.dec.forward(y.clone(), act);
+        let rec = (x_rec - x.clone()).powi_scalar(2).mean();
+        let k = fit_koopman(y.clone(), p.clone(), ridge);
+        let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
+        let y_pred = rollout(&k, y0, p, t - 1);
+        let x_pred = self.dec.forward(y_pred.clone(), act);
+        let x_next = x.slice([0..b, 1..t, 0..s]);
+        let pred = (x_pred - x_next).powi_scalar(2).mean();
+        let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
+        let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
+        Losses {
+            total,
+            parts: [rec, pred, lin],
+        }
+    }
+}
+
+/// The MLP baseline: regresses the length from a window of normalised
+/// states, flattened `[theta_0, theta_dot_0, theta_1, ...]`.
+#[derive(Module, Debug)]
+pub struct Regressor {
+    /// `2 window -> hidden -> hidden -> 1`.
+    pub net: Mlp,
+}
+
+impl Regressor {
+    /// New regressor for windows of `window` states.
+    pub fn new(window: usize, hidden: usize, device: &Device) -> Self {
+        Regressor {
+            net: Mlp::new(2 * window, hidden, 1, device),
+        }
+    }
+
+    /// Predicted lengths `[B]` of windows `x` `[B, T, 2]`.
+    pub fn forward(&self, x: Tensor<3>, act: Activation) -> Tensor<1> {
+        let [b, t, s] = x.dims();
+        self.net.forward(x.reshape([b, t * s]), act).reshape([b])
+    }
+
+    /// Mean squared error against the true lengths, and the mean absolute
+    /// error (reported, not trained on).
+    pub fn losses(&self, x: Tensor<3>, p: Tensor<2>, act: Activation) -> Losses {
+        let [b, _] = p.dims();
+        let truth = p.slice([0..b, 0..1]).reshape([b]);
+        let err = self.forward(x, act) - truth;
+        let mse = err.clone().powi_scalar(2).mean();
+        let mae = err.abs().mean().detach();
+        Losses {
+            total: mse.clone(),
+            parts: [mse, mae.clone(), mae.zeros_like()],
+        }
+    }
+}

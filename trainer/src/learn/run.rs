@@ -1,0 +1,150 @@
+//! A run directory: the config it was trained with, its normalisation and
+//! progress, the model's checkpoint (burnpack) and the training log; and
+//! the training data its config describes.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device};
+use serde::{Deserialize, Serialize};
+use trainer_core::data::{self, Dataset};
+
+use super::config::{ModelKind, TrainConfig};
+use super::model::Trainable;
+
+/// Per-dimension normalisation fitted on the training set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Norm {
+    /// Mean.
+    pub mu: [f64; 2],
+    /// Standard deviation.
+    pub s: [f64; 2],
+}
+
+impl Norm {
+    /// Fits mean and standard deviation over every observation.
+    pub fn fit(ds: &Dataset) -> Norm {
+        let n = ds.rollouts.iter().map(|r| r.xs.len()).sum::<usize>() as f64;
+        let mut mu = [0.0; 2];
+        let mut s = [0.0; 2];
+        for x in ds.rollouts.iter().flat_map(|r| &r.xs) {
+            for k in 0..2 {
+                mu[k] += x[k] / n;
+            }
+        }
+        for x in ds.rollouts.iter().flat_map(|r| &r.xs) {
+            for k in 0..2 {
+                s[k] += (x[k] - mu[k]).powi(2) / n;
+            }
+        }
+        Norm {
+            mu,
+            s: s.map(f64::sqrt),
+        }
+    }
+    /// Applies it.
+    pub fn apply(&self, x: [f64; 2]) -> [f32; 2] {
+        [
+            ((x[0] - self.mu[0]) / self.s[0]) as f32,
+            ((x[1] - self.mu[1]) / self.s[1]) as f32,
+        ]
+    }
+}
+
+/// Progress of a run, saved with each checkpoint.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RunState {
+    /// Iterations done.
+    pub iteration: usize,
+    /// Training wall time so far, s.
+    pub train_seconds: f64,
+    /// Normalisation of the run.
+    pub norm: Norm,
+    /// Last losses `[total, parts..]` (parts named in the log's header).
+    pub last_losses: [f64; 4],
+}
+
+/// Files of a run directory.
+pub struct RunPaths {
+    /// `config.json`.
+    pub config: PathBuf,
+    /// `model.bpk` (burnpack).
+    pub model: PathBuf,
+    /// `optim.bpk` (Adam's state).
+    pub optim: PathBuf,
+    /// `state.json`.
+    pub state: PathBuf,
+    /// `log.csv`.
+    pub log: PathBuf,
+}
+
+impl RunPaths {
+    /// The files of run `dir`.
+    pub fn new(dir: &Path) -> Self {
+        RunPaths {
+            config: dir.join("config.json"),
+            model: dir.join("model.bpk"),
+            optim: dir.join("optim.bpk"),
+            state: dir.join("state.json"),
+            log: dir.join("log.csv"),
+        }
+    }
+}
+
+/// The device all training runs on: flex CPU with autodiff.
+pub fn device() -> Device {
+    Device::flex().autodiff()
+}
+
+/// The training data a config describes (deterministic from its seed).
+pub fn training_data(cfg: &TrainConfig) -> Dataset {
+    data::training_set_with(
+        cfg.seed,
+        &cfg.lengths,
+        cfg.rollouts_per_length,
+        &[],
+        data::Physics {
+            g: cfg.g,
+            dt: cfg.dt,
+        },
+        cfg.theta0,
+        cfg.effect.as_ref(),
+    )
+}
+
+/// Loads the model of a run.
+pub fn load_model<M: Trainable>(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<M> {
+    load_module(&paths.model, cfg, device)
+}
+
+/// Loads a module saved as burnpack bytes at `path`.
+pub fn load_module<M: Trainable>(path: &Path, cfg: &TrainConfig, device: &Device) -> Result<M> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))?;
+    M::init(cfg, device)
+        .try_load_record(record)
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))
+}
+
+/// Reads a run's config and state.
+pub fn read(dir: &Path) -> Result<(TrainConfig, RunState)> {
+    let paths = RunPaths::new(dir);
+    let cfg: TrainConfig = serde_json::from_str(
+        &std::fs::read_to_string(&paths.config)
+            .with_context(|| format!("{}: cannot read", paths.config.display()))?,
+    )
+    .with_context(|| format!("{}", paths.config.display()))?;
+    let state: RunState = serde_json::from_str(
+        &std::fs::read_to_string(&paths.state)
+            .with_context(|| format!("{}: cannot read", paths.state.display()))?,
+    )
+    .with_context(|| format!("{}", paths.state.display()))?;
+    Ok((cfg, state))
+}
+
+/// The model kind of run `dir`.
+pub fn kind(dir: &Path) -> Result<ModelKind> {
+    Ok(read(dir)?.0.model)
+}

@@ -1,0 +1,296 @@
+//! The training loop: stratified batches of windows, the KLM losses, Adam,
+//! a progress bar, periodic atomic checkpoints and resume.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::{Bytes, Device, Tensor, TensorData};
+use estimator::blob::ParamSpec;
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use trainer_core::data::Dataset;
+use trainer_core::io::write_atomic;
+
+use super::config::{ModelKind, TrainConfig};
+use super::model::{Klm, Regressor, Trainable};
+use super::run::{Norm, RunPaths, RunState, device, load_model, training_data};
+
+/// Normalised windows and their parameters, ready to batch.
+pub struct Batcher {
+    /// `[rollout][t] -> normalised x`.
+    xs: Vec<Vec<[f32; 2]>>,
+    /// Parameters per rollout: the length's coordinate and the effect's
+    /// coefficient (0 without one).
+    ps: Vec<[f32; 2]>,
+    /// Rollout indices per length, for stratified batches.
+    strata: Vec<Vec<usize>>,
+}
+
+impl Batcher {
+    /// From a data set with its truth; the first parameter is the length's
+    /// coordinate under `length` (its reading), the second the coefficient
+    /// of the effect named `effect` (0 without one).
+    pub fn new(
+        ds: &Dataset,
+        norm: &Norm,
+        length: &ParamSpec<'_>,
+        effect: Option<&str>,
+    ) -> Result<Self> {
+        let mut xs = Vec::new();
+        let mut ps = Vec::new();
+        let mut lengths: Vec<f64> = Vec::new();
+        let mut strata: Vec<Vec<usize>> = Vec::new();
+        for (i, r) in ds.rollouts.iter().enumerate() {
+            let m = ds
+                .meta(r.id)
+                .context("training rollout without truth in its sidecar")?;
+            xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
+            let second = match effect {
+                Some(name) => *m
+                    .effects
+                    .get(name)
+                    .with_context(|| format!("rollout {} has no {name} coefficient", r.id))?,
+                None => 0.0,
+            };
+            ps.push([length.coordinate(m.length as f32), second as f32]);
+            match lengths.iter().position(|&l| l == m.length) {
+                Some(k) => strata[k].push(i),
+                None => {
+                    lengths.push(m.length);
+                    strata.push(vec![i]);
+                }
+            }
+        }
+        Ok(Batcher { xs, ps, strata })
+    }
+
+    /// Batch `iteration`'s windows, drawn from a generator seeded with the run's
+    /// seed and the iteration (so a resumed run draws the same batches).
+    /// Stratified (each length in turn) for the KLM and the MLP; curated for
+    /// the CBM: every window of a batch has the same length, the lengths
+    /// taking turns from one batch to the next.
+    pub fn batch(
+        &self,
+        cfg: &TrainConfig,
+        iteration: usize,
+        device: &Device,
+    ) -> (Tensor<3>, Tensor<2>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(
+            cfg.seed ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
+        let t = cfg.window;
+        let mut x = Vec::with_capacity(cfg.batch * t * 2);
+        let mut p = Vec::with_capacity(cfg.batch * 2);
+        let curated = cfg.model == ModelKind::Cbm;
+        for b in 0..cfg.batch {
+            let k = if curated { iteration } else { b };
+            let stratum = &self.strata[k % self.strata.len()];
+            let r = stratum[rng.random_range(0..stratum.len())];
+            let len = self.xs[r].len();
+            let start = rng.random_range(0..=len - t);
+            for v in &self.xs[r][start..start + t] {
+                x.extend_from_slice(v);
+            }
+            p.extend_from_slice(&self.ps[r]);
+        }
+        (
+            Tensor::from_data(TensorData::new(x, [cfg.batch, t, 2]), device),
+            Tensor::from_data(TensorData::new(p, [cfg.batch, 2]), device),
+        )
+    }
+}
+
+fn save_checkpoint<M: Trainable>(
+    paths: &RunPaths,
+    model: &M,
+    optim_bytes: Bytes,
+    state: &RunState,
+) -> Result<()> {
+    let bytes = model
+        .clone()
+        .into_record()
+        .into_bytes()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    write_atomic(&paths.model, &bytes)?;
+    write_atomic(&paths.optim, &optim_bytes)?;
+    write_atomic(
+        &paths.state,
+        serde_json::to_string_pretty(state)?.as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// Trains the model `cfg.model` into `dir`; with `resume`, continues from its
+/// last checkpoint (using the config saved there, whose model kind wins).
+pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<RunState> {
+    let kind = if resume {
+        let saved: TrainConfig = serde_json::from_str(
+            &std::fs::read_to_string(RunPaths::new(dir).config).context("no run to resume")?,
+        )?;
+        saved.model
+    } else {
+        cfg.model
+    };
+    match kind {
+        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, quiet),
+        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, quiet),
+    }
+}
+
+fn train_model<M: Trainable>(
+    dir: &Path,
+    cfg: TrainConfig,
+    resume: bool,
+    quiet: bool,
+) -> Result<RunState> {
+    let paths = RunPaths::new(dir);
+    let device = device();
+    let saved: Option<TrainConfig> = if resume {
+        Some(serde_json::from_str(
+            &std::fs::read_to_string(&paths.config).context("no run to resume")?,
+        )?)
+    } else {
+        None
+    };
+    let ds = training_data(saved.as_ref().unwrap_or(&cfg));
+    let (cfg, mut model, mut optim, mut state) = if resume {
+        let cfg = saved.clone().context("no saved config")?;
+        let state: RunState = serde_json::from_str(
+            &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
+        )?;
+        let model: M = load_model(&paths, &cfg, &device)?;
+        let optim = AdamConfig::new()
+            .init()
+            .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        // A kill between the log's append and the checkpoint leaves log lines
+        // past the checkpoint: drop them, they will be trained again.
+        let log = std::fs::read_to_string(&paths.log).unwrap_or_default();
+        let kept: String = log
+            .lines()
+            .enumerate()
+            .filter(|(i, l)| {
+                *i == 0
+                    || l.split(',')
+                        .next()
+                        .and_then(|v| v.parse::<usize>().ok())
+                        .is_some_and(|it| it <= state.iteration)
+            })
+            .map(|(_, l)| format!("{l}\n"))
+            .collect();
+        write_atomic(&paths.log, kept.as_bytes())?;
+        (cfg, model, optim, state)
+    } else {
+        std::fs::create_dir_all(dir)?;
+        write_atomic(
+            &paths.config,
+            serde_json::to_string_pretty(&cfg)?.as_bytes(),
+        )?;
+        device.seed(cfg.seed);
+        let model = M::init(&cfg, &device);
+        let norm = Norm::fit(&ds);
+        let state = RunState {
+            iteration: 0,
+            train_seconds: 0.0,
+            norm,
+            last_losses: [0.0; 4],
+        };
+        let [a, b, c] = M::PARTS;
+        write_atomic(
+            &paths.log,
+            format!("iteration,total,{a},{b},{c},seconds\n").as_bytes(),
+        )?;
+        (cfg, model, AdamConfig::new().init(), state)
+    };
+    if cfg.threads > 0 {
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(cfg.threads)
+            .build_global();
+    }
+    let batcher = Batcher::new(
+        &ds,
+        &state.norm,
+        &cfg.length_spec(),
+        cfg.effect.as_ref().map(|e| e.name.name()),
+    )?;
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(cfg.iterations as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_position(state.iteration as u64);
+    let mut log = String::new();
+    let start = Instant::now();
+    let base_seconds = state.train_seconds;
+    while state.iteration < cfg.iterations {
+        let (x, p) = batcher.batch(&cfg, state.iteration, &device);
+        let l = model.batch_losses(x, p, &cfg);
+        let [pa, pb, pc] = &l.parts;
+        let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
+        let grads = GradientsParams::from_grads(l.total.backward(), &model);
+        model = optim.step(cfg.lr_at(state.iteration), model, grads);
+        state.iteration += 1;
+        state.last_losses = values;
+        state.train_seconds = base_seconds + start.elapsed().as_secs_f64();
+        log.push_str(&format!(
+            "{},{:.6e},{:.6e},{:.6e},{:.6e},{:.3}\n",
+            state.iteration, values[0], values[1], values[2], values[3], state.train_seconds
+        ));
+        bar.set_message(format!(
+            "loss {:.2e} {} {:.2e} {} {:.2e}",
+            values[0],
+            M::PARTS[0],
+            values[1],
+            M::PARTS[1],
+            values[2]
+        ));
+        bar.inc(1);
+        if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
+            let mut old = std::fs::read(&paths.log).unwrap_or_default();
+            old.extend_from_slice(log.as_bytes());
+            write_atomic(&paths.log, &old)?;
+            log.clear();
+            let optim_bytes = optim.into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            save_checkpoint(&paths, &model, optim_bytes, &state)?;
+        }
+    }
+    bar.finish();
+    Ok(state)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lengths of the windows in one batch (read back from `p`).
+    fn batch_lengths(kind: ModelKind, iteration: usize) -> Vec<f32> {
+        let cfg = TrainConfig {
+            rollouts_per_length: 6,
+            batch: 8,
+            ..TrainConfig::for_model(kind)
+        };
+        let ds = training_data(&cfg);
+        let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg.length_spec(), None).unwrap();
+        let (_, p) = b.batch(&cfg, iteration, &Device::flex());
+        let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
+        p.chunks(2).map(|c| c[0]).collect()
+    }
+
+    #[test]
+    fn klm_batches_mix_lengths_and_cbm_batches_hold_one() {
+        assert_eq!(batch_lengths(ModelKind::Klm, 0), [2.0, 5.0].repeat(4));
+        assert_eq!(batch_lengths(ModelKind::Cbm, 0), [2.0; 8]);
+        assert_eq!(batch_lengths(ModelKind::Cbm, 1), [5.0; 8]);
+        assert_eq!(batch_lengths(ModelKind::Mlp, 3), [2.0, 5.0].repeat(4));
+    }
+}
