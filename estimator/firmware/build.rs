@@ -17,9 +17,7 @@ fn main() {
     // protocol's test set): little-endian u32 count, u32 steps, then per
     // rollout a u32 id and `steps` pairs of f32 (theta, theta_dot).
     let bytes = fs::read("rollouts.bin").expect("read rollouts.bin");
-    let mut words = bytes
-        .chunks_exact(4)
-        .map(|c| [c[0], c[1], c[2], c[3]]);
+    let mut words = bytes.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]);
     let mut next = || words.next().expect("rollouts.bin: truncated");
     let count = u32::from_le_bytes(next());
     let steps = u32::from_le_bytes(next()) as usize;

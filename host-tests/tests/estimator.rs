@@ -1,6 +1,6 @@
 //! The estimator on the shipped weights and the protocol's test set.
 
-use estimator::{Error, Estimator, Model, Trust};
+use estimator::{Error, Estimator, Model, Trust, WINDOW};
 use host_tests::shipped_blob;
 use trainer_core::data::test_set;
 use trainer_core::protocol::TEST_LENGTHS;
@@ -229,7 +229,10 @@ fn two_stage_covariance_is_the_full_recursions_and_positive_definite() {
             for p in [p_full, p_two] {
                 // The undeclared parameter has zero variance: check the 17x17 block.
                 let block = p.fixed_view::<17, 17>(0, 0).into_owned();
-                assert!(block.cholesky().is_some(), "P not positive definite at L = {l}");
+                assert!(
+                    block.cholesky().is_some(),
+                    "P not positive definite at L = {l}"
+                );
             }
         }
     }
@@ -246,7 +249,7 @@ fn out_of_distribution_lengths_are_flagged() {
             .filter(|&k| {
                 let mut est = Estimator::new(&m);
                 let mut last = None;
-                for x in &rollout(l, k)[..64] {
+                for x in &rollout(l, k)[..WINDOW] {
                     last = Some(est.step(x).unwrap());
                 }
                 last.unwrap().trust == Trust::Untrusted
@@ -341,7 +344,7 @@ fn length_estimates_and_sigma_on_the_test_set() {
         for k in 0..10 {
             let mut est = Estimator::new(&m);
             let mut last = None;
-            for x in &rollout(l, k)[..64] {
+            for x in &rollout(l, k)[..WINDOW] {
                 last = Some(est.step(x).unwrap());
             }
             let out = last.unwrap();

@@ -49,7 +49,8 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
     let mut last = None;
     for (t, x) in xs.iter().enumerate() {
         let out = est.step(x).unwrap_or_else(|e| panic!("step {t}: {e}"));
-        full.step(x).unwrap_or_else(|e| panic!("step {t}, full recursion: {e}"));
+        full.step(x)
+            .unwrap_or_else(|e| panic!("step {t}, full recursion: {e}"));
         last = Some(out);
         assert!(
             out.coordinate
@@ -77,9 +78,15 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
         if t % 1000 == 0 || t + 1 == STEPS {
             let q = full.covariance().unwrap();
             let gap = host_tests::covariance_gap(&p, &q);
-            assert!(gap < 1e-2, "step {t}: two-stage P departs from the recursion by {gap:e}");
+            assert!(
+                gap < 1e-2,
+                "step {t}: two-stage P departs from the recursion by {gap:e}"
+            );
             let (a, b) = (p[(16, 16)], q[(16, 16)]);
-            assert!((a - b).abs() <= 0.01 * b, "step {t}: var of the coordinate {a:e} against {b:e}");
+            assert!(
+                (a - b).abs() <= 0.01 * b,
+                "step {t}: var of the coordinate {a:e} against {b:e}"
+            );
             worst_gap = worst_gap.max(gap);
         }
         let block: SMatrix<f32, 17, 17> = p.fixed_view::<17, 17>(0, 0).into_owned();

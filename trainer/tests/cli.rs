@@ -373,6 +373,80 @@ fn import_reads_the_measured_recordings() {
     assert!((first[2] + 90.36f64.to_radians()).abs() < 0.01, "{first:?}");
 }
 
+/// A user's own layout: tab-separated, units in the header, the columns
+/// named on the command line, angles in degrees; and the same file with a
+/// broken line is refused naming the file and line.
+#[test]
+fn import_reads_a_users_table_with_named_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("tracker.tsv");
+    let mut text = String::from("frame\ttime (s)\tAngle [deg]\n");
+    // 30 Hz for 2 s of a 10-degree swing of period 1.2 s.
+    for k in 0..60 {
+        let t = k as f64 / 30.0;
+        let a = 10.0 * (2.0 * std::f64::consts::PI * t / 1.2).cos();
+        text.push_str(&format!("{k}\t{t}\t{a}\n"));
+    }
+    std::fs::write(&rec, &text).unwrap();
+    let out = dir.path().join("mine.csv");
+    run_ok(
+        koopman()
+            .arg("import")
+            .arg(&rec)
+            .args([
+                "--time-column",
+                "time",
+                "--angle-column",
+                "3",
+                "--unit",
+                "degrees",
+            ])
+            .arg("--out")
+            .arg(&out),
+    );
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // 0 .. 1.9667 s every 0.05 s: 40 steps; the first angle is 10 degrees,
+    // smoothed over +-1 sample of a cosine at its top (within 0.3%).
+    assert_eq!(rows.len(), 40);
+    assert!(
+        (rows[0][2] - 10f64.to_radians()).abs() < 0.003 * 10f64.to_radians(),
+        "{:?}",
+        rows[0]
+    );
+    // A column that is not there, and a broken line, are named.
+    let bad = koopman()
+        .arg("import")
+        .arg(&rec)
+        .args(["--angle-column", "theta", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("tracker.tsv:1") && err.contains("no angle column named"),
+        "{err}"
+    );
+    std::fs::write(&rec, text.replacen("\n5\t", "\n5\tx", 1)).unwrap();
+    let bad = koopman()
+        .arg("import")
+        .arg(&rec)
+        .args(["--angle-column", "angle", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("tracker.tsv:7"),
+        "{err}"
+    );
+}
+
 #[test]
 fn an_effect_trains_as_the_second_parameter() {
     let dir = tempfile::tempdir().unwrap();

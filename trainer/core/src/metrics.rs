@@ -49,7 +49,10 @@ pub fn simulate(
     };
     let mut out = vec![[0.0f32; STATE_DIM]; xs.len() - 1];
     model.simulate_coordinates(&[x0[0] as f32, x0[1] as f32], &q, &mut out)?;
-    Ok(out.iter().map(|s| [f64::from(s[0]), f64::from(s[1])]).collect())
+    Ok(out
+        .iter()
+        .map(|s| [f64::from(s[0]), f64::from(s[1])])
+        .collect())
 }
 
 /// The protocol's MSE: [`simulate`] against `xs[1..]` in the model's

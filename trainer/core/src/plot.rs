@@ -46,7 +46,10 @@ pub fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
 }
 
 /// Draws the legend of a chart's labelled series.
-pub fn legend<'a, DB, CT>(chart: &mut ChartContext<'a, DB, CT>, pos: SeriesLabelPosition) -> Result<()>
+pub fn legend<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+) -> Result<()>
 where
     DB: DrawingBackend + 'a,
     CT: CoordTranslate,
@@ -133,3 +136,23 @@ pub fn png(path: &Path, size: (u32, u32)) -> Result<DrawingArea<BitMapBackend<'_
 
 /// A named curve and its style.
 pub type Curve = (&'static str, Vec<(f64, f64)>, ShapeStyle);
+
+/// Draws each curve as a labelled line, then the legend at `pos`.
+pub fn curves<'a, DB, CT>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    curves: impl IntoIterator<Item = Curve>,
+    pos: SeriesLabelPosition,
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    for (name, pts, style) in curves {
+        chart
+            .draw_series(LineSeries::new(pts, style))
+            .map_err(err)?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    legend(chart, pos)
+}

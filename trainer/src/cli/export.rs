@@ -56,7 +56,9 @@ pub fn run(a: Args) -> Result<()> {
         }
         kind => {
             let name = if kind == ModelKind::Cbm { "cbm" } else { "mlp" };
-            let out = a.out.unwrap_or_else(|| format!("weights/{name}.bpk").into());
+            let out = a
+                .out
+                .unwrap_or_else(|| format!("weights/{name}.bpk").into());
             let info = baseline::export_baseline(&a.run, &out)?;
             println!(
                 "wrote {} ({} bytes) and {}",

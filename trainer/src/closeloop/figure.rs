@@ -6,7 +6,7 @@ use anyhow::Result;
 use estimator::Model;
 use plotters::prelude::*;
 use trainer_core::data::Dataset;
-use trainer_core::plot::{COLOURS, Curve, bounds, err, legend, png};
+use trainer_core::plot::{COLOURS, Curve, bounds, curves as draw_curves, err, png};
 
 use super::CloseLoopReport;
 
@@ -78,14 +78,7 @@ pub fn close_loop(
             .y_desc("theta (rad)")
             .draw()
             .map_err(err)?;
-        for (name, pts, style) in curves {
-            chart
-                .draw_series(LineSeries::new(pts, style))
-                .map_err(err)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
-        }
-        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+        draw_curves(&mut chart, curves, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)
 }

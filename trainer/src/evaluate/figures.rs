@@ -9,7 +9,7 @@ use estimator::Model;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use trainer_core::data::Dataset;
-use trainer_core::plot::{COLOURS, Curve, bounds, colour, err, legend, length_lines, png};
+use trainer_core::plot::{COLOURS, Curve, bounds, colour, curves, err, legend, length_lines, png};
 use trainer_core::protocol::{BURN_IN, DT};
 
 use super::score::RolloutScore;
@@ -311,7 +311,6 @@ pub fn estimates_vs_truth(path: &Path, scores: &[RolloutScore]) -> Result<()> {
     root.present().map_err(err)
 }
 
-
 /// `trajectories.png`: per test length, the angle of one rollout (the 5th,
 /// `theta_0` near the middle of the range) against the KLM's simulation
 /// from `x_0` with the filter's estimate and with the true length.
@@ -396,15 +395,7 @@ pub fn trajectories(
                 COLOURS[2].stroke_width(1),
             ),
         ];
-        for (name, pts, style) in series {
-            chart
-                .draw_series(LineSeries::new(pts, style))
-                .map_err(err)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
-        }
-        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+        curves(&mut chart, series, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)
 }
-

@@ -58,4 +58,3 @@ pub fn export_baseline(dir: &Path, out: &Path) -> Result<BaselineInfo> {
     )?;
     Ok(info)
 }
-

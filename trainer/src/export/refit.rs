@@ -83,4 +83,3 @@ pub fn global_koopman(
     }
     Ok((f, residual_var))
 }
-

@@ -314,5 +314,4 @@ mod tests {
         // No schedule: nothing to store.
         assert!(gain_schedule(&f, &toy_filter(0)).unwrap().0.is_empty());
     }
-
 }

@@ -21,10 +21,7 @@ pub struct Physics {
 
 impl Physics {
     /// The protocol's: `g = 10`, `dt = 0.05`.
-    pub const PROTOCOL: Physics = Physics {
-        g: G,
-        dt: DT,
-    };
+    pub const PROTOCOL: Physics = Physics { g: G, dt: DT };
 }
 
 /// One rollout to simulate: length, initial angle, its effects.
@@ -158,15 +155,7 @@ mod tests {
         );
         // Without the varied effect the protocol's stream is unchanged.
         let a = training_set(7, &[2.0, 5.0], 3, &[]);
-        let b = training_set_with(
-            7,
-            &[2.0, 5.0],
-            3,
-            &[],
-            Physics::PROTOCOL,
-            THETA0,
-            None,
-        );
+        let b = training_set_with(7, &[2.0, 5.0], 3, &[], Physics::PROTOCOL, THETA0, None);
         assert_eq!(a, b);
     }
 }

@@ -110,7 +110,12 @@ fn bare(name: &str) -> String {
 }
 
 /// The column `given` names, or the first of `usual` in the header.
-fn find(table: &Table, given: Option<&str>, usual: &[&str], what: &str) -> Result<Option<usize>, CsvError> {
+fn find(
+    table: &Table,
+    given: Option<&str>,
+    usual: &[&str],
+    what: &str,
+) -> Result<Option<usize>, CsvError> {
     let header: Vec<String> = table.header.iter().map(|h| bare(h)).collect();
     match given {
         Some(g) => {
@@ -118,15 +123,33 @@ fn find(table: &Table, given: Option<&str>, usual: &[&str], what: &str) -> Resul
                 return if (1..=header.len()).contains(&k) {
                     Ok(Some(k - 1))
                 } else {
-                    Err(table.error(1, format!("{what} column {k} is not among the header's {} columns", header.len())))
+                    Err(table.error(
+                        1,
+                        format!(
+                            "{what} column {k} is not among the header's {} columns",
+                            header.len()
+                        ),
+                    ))
                 };
             }
             let b = bare(g);
-            header.iter().position(|h| *h == b).map(Some).ok_or_else(|| {
-                table.error(1, format!("no {what} column named {g:?} in the header {:?}", table.header.join(",")))
-            })
+            header
+                .iter()
+                .position(|h| *h == b)
+                .map(Some)
+                .ok_or_else(|| {
+                    table.error(
+                        1,
+                        format!(
+                            "no {what} column named {g:?} in the header {:?}",
+                            table.header.join(",")
+                        ),
+                    )
+                })
         }
-        None => Ok(usual.iter().find_map(|u| header.iter().position(|h| h == u))),
+        None => Ok(usual
+            .iter()
+            .find_map(|u| header.iter().position(|h| h == u))),
     }
 }
 
@@ -170,18 +193,22 @@ pub fn parse_table(table: &Table, opts: &ImportOptions) -> Result<Recording, Csv
         Unit::Radians => 1.0,
     };
     let ti = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
-    let th = find(table, opts.columns.angle.as_deref(), &ANGLE_NAMES, "angle")?.ok_or_else(|| {
-        table.error(
-            1,
-            format!(
-                "no angle column (header {:?}): name it (--angle-column)",
-                table.header.join(",")
-            ),
-        )
-    })?;
+    let th =
+        find(table, opts.columns.angle.as_deref(), &ANGLE_NAMES, "angle")?.ok_or_else(|| {
+            table.error(
+                1,
+                format!(
+                    "no angle column (header {:?}): name it (--angle-column)",
+                    table.header.join(",")
+                ),
+            )
+        })?;
     let td = find(table, opts.columns.rate.as_deref(), &RATE_NAMES, "rate")?;
     if ti.is_none() && opts.rate.is_none() {
-        return Err(table.error(0, "no time column: name it (--time-column) or give the sample rate (--rate)"));
+        return Err(table.error(
+            0,
+            "no time column: name it (--time-column) or give the sample rate (--rate)",
+        ));
     }
     let (mut t, mut theta, mut rate) = (Vec::new(), Vec::new(), Vec::new());
     for row in &table.rows {
@@ -193,7 +220,10 @@ pub fn parse_table(table: &Table, opts: &ImportOptions) -> Result<Recording, Csv
         if let Some(&prev) = t.last()
             && time <= prev
         {
-            return Err(table.error(row.line, format!("time {time} does not increase (previous {prev})")));
+            return Err(table.error(
+                row.line,
+                format!("time {time} does not increase (previous {prev})"),
+            ));
         }
         t.push(time);
         theta.push(table.number(row, th, "angle")? * scale);

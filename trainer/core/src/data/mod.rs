@@ -95,4 +95,3 @@ pub fn read_inputs(inputs: &[PathBuf], opts: &import::ImportOptions) -> anyhow::
     }
     import::import(inputs, opts)
 }
-

@@ -73,10 +73,9 @@ pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvErro
                 if let Some(&last) = r.t.last()
                     && v[0] <= last
                 {
-                    return Err(table.error(
-                        n,
-                        format!("t {} does not increase (previous {last})", v[0]),
-                    ));
+                    return Err(
+                        table.error(n, format!("t {} does not increase (previous {last})", v[0]))
+                    );
                 }
                 r.t.push(v[0]);
                 r.xs.push([v[1], v[2]]);
@@ -133,7 +132,6 @@ pub fn read(path: &Path, min_rows: usize) -> anyhow::Result<Dataset> {
     };
     Ok(Dataset { rollouts, sidecar })
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -78,24 +78,32 @@ impl Table {
     /// the header.
     pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
         let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-        let mut reader = csv::ReaderBuilder::new()
-            .delimiter(separator(first))
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .from_reader(text.as_bytes());
+        let sep = separator(first);
         let mut header: Option<Vec<String>> = None;
         let mut rows = Vec::new();
-        for rec in reader.records() {
-            let rec = rec.map_err(|e| {
-                let line = e.position().map_or(0, |p| p.line() as usize);
-                CsvError::new(path, line, format!("unreadable: {e}"))
-            })?;
-            let line = rec.position().map_or(0, |p| p.line() as usize);
-            if rec.iter().all(str::is_empty) {
+        // Line by line, so that the line numbers are the file's (the csv
+        // crate's own count skips blank lines); each line's fields are
+        // split by the csv crate (quotes, separators, spaces).
+        for (i, text_line) in text.lines().enumerate() {
+            if text_line.trim().is_empty() {
                 continue;
             }
-            let fields: Vec<String> = rec.iter().map(str::to_string).collect();
+            let line = i + 1;
+            let mut reader = csv::ReaderBuilder::new()
+                .delimiter(sep)
+                .has_headers(false)
+                .flexible(true)
+                .trim(csv::Trim::All)
+                .buffer_capacity(text_line.len() + 8)
+                .from_reader(text_line.as_bytes());
+            let mut record = csv::StringRecord::new();
+            let got = reader
+                .read_record(&mut record)
+                .map_err(|e| CsvError::new(path, line, format!("unreadable: {e}")))?;
+            if !got {
+                continue;
+            }
+            let fields: Vec<String> = record.iter().map(str::to_string).collect();
             match header {
                 None => header = Some(fields),
                 Some(_) => rows.push(Row { line, fields }),
@@ -158,7 +166,17 @@ mod tests {
         let e = Table::parse(Path::new("e.csv"), " \n\n").unwrap_err();
         assert_eq!(e.to_string(), "e.csv: empty file");
         let t = Table::parse(Path::new("n.csv"), "t,x\n0,NaN\n1,abc\n").unwrap();
-        assert!(t.number(&t.rows[0], 1, "x").unwrap_err().to_string().starts_with("n.csv:2: x is NaN"));
-        assert!(t.number(&t.rows[1], 1, "x").unwrap_err().to_string().contains("n.csv:3: x \"abc\" is not a number"));
+        assert!(
+            t.number(&t.rows[0], 1, "x")
+                .unwrap_err()
+                .to_string()
+                .starts_with("n.csv:2: x is NaN")
+        );
+        assert!(
+            t.number(&t.rows[1], 1, "x")
+                .unwrap_err()
+                .to_string()
+                .contains("n.csv:3: x \"abc\" is not a number")
+        );
     }
 }

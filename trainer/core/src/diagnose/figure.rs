@@ -90,4 +90,3 @@ pub fn residual(path: &Path, d: &Diagnosis) -> Result<()> {
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().map_err(err)
 }
-

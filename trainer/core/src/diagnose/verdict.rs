@@ -13,10 +13,22 @@ pub const STRUCTURE: f64 = 0.5;
 /// selected and no structure left. `nuisance_only` is the fit with the
 /// length correction alone, `selected` the fit with the selected effects,
 /// `floor` the resolution in RMS.
-pub fn verdict(any_selected: bool, nuisance_only: &Fit, selected: &Fit, floor: f64) -> &'static str {
+pub fn verdict(
+    any_selected: bool,
+    nuisance_only: &Fit,
+    selected: &Fit,
+    floor: f64,
+) -> &'static str {
     let rms = |f: &Fit| crate::metrics::rms(f.resid.iter().copied());
     let structured = |f: &Fit| f.rho > STRUCTURE && rms(f) >= floor;
-    match (any_selected, structured(if any_selected { selected } else { nuisance_only })) {
+    match (
+        any_selected,
+        structured(if any_selected {
+            selected
+        } else {
+            nuisance_only
+        }),
+    ) {
         (false, false) => "none",
         (true, false) => "explained",
         (_, true) => "unexplained",
