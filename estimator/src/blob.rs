@@ -293,6 +293,15 @@ impl ParamSpec<'_> {
         }
     }
 
+    /// Whether `p` is a value a physical system can have: finite, and
+    /// positive when the parameter was trained on positive values only
+    /// (a length; a range that reaches 0 or below, like a friction
+    /// coefficient's or a torque's, allows any finite value).
+    #[inline]
+    pub fn physical(&self, p: f32) -> bool {
+        p.is_finite() && (self.train_range[0] <= 0.0 || p > 0.0)
+    }
+
     /// The filter's coordinate of the value `p` (the inverse of
     /// [`ParamSpec::read`]); not finite for `p = 0` with a reciprocal
     /// reading.

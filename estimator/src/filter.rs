@@ -233,7 +233,9 @@ pub enum Trust {
     Pending,
     /// Sigma at or below the calibrated threshold.
     Trusted,
-    /// Sigma above the calibrated threshold: the model does not know.
+    /// Sigma above the calibrated threshold, or a parameter read as a
+    /// value no physical system has (a length not positive or not finite):
+    /// the model does not know.
     Untrusted,
 }
 
@@ -264,6 +266,14 @@ pub struct StepOutput {
 }
 
 /// Running mean and squared deviation (Welford), per parameter.
+///
+/// The count stops at [`Spread::CAP`]: past it, each correction enters
+/// with the weight `1 / CAP`, and the sum of squared deviations forgets
+/// at that rate (`m2 <- (1 - 1/CAP) (m2 + d^2)`, the exponentially
+/// weighted form of the same update), so sigma stays the spread of the
+/// last ~`CAP` corrections for any run length. `CAP = 2^24`: beyond it an
+/// `f32` count is no longer exact and `d / n` falls below the mean's
+/// resolution, so the plain update would stop meaning anything anyway.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Spread {
     n: u32,
@@ -272,13 +282,23 @@ struct Spread {
 }
 
 impl Spread {
+    /// The largest count (see the type's docs).
+    const CAP: u32 = 1 << 24;
+
     fn push(&mut self, c: &[f32; PARAM_DIM]) {
-        self.n += 1;
+        let saturated = self.n >= Self::CAP;
+        if !saturated {
+            self.n += 1;
+        }
         let n = self.n as f32;
         for ((m, m2), c) in self.mean.iter_mut().zip(self.m2.iter_mut()).zip(c) {
             let d = c - *m;
             *m += d / n;
-            *m2 += d * (c - *m);
+            if saturated {
+                *m2 = (1.0 - 1.0 / n) * (*m2 + d * d);
+            } else {
+                *m2 += d * (c - *m);
+            }
         }
     }
     fn sigma(&self) -> [f32; PARAM_DIM] {
@@ -845,10 +865,18 @@ impl<'m> Estimator<'m> {
             *s = libm::fabsf(spec.slope(*q)) * q_std;
         }
         let sigma = self.spread.sigma();
+        // A value no physical system has (not finite, or not positive for a
+        // parameter trained on positive values only, like a length) is
+        // never trusted, whatever sigma says.
+        let physical = specs
+            .iter()
+            .zip(&params)
+            .all(|(spec, p)| !spec.declared || spec.physical(*p));
         let trust = if self.spread.n < 2 {
             Trust::Pending
-        } else if sigma.first().copied().unwrap_or(f32::INFINITY)
-            <= self.model.blob().body.filter.sigma_threshold
+        } else if physical
+            && sigma.first().copied().unwrap_or(f32::INFINITY)
+                <= self.model.blob().body.filter.sigma_threshold
         {
             Trust::Trusted
         } else {
@@ -924,4 +952,47 @@ pub fn run<'m>(est: &mut Estimator<'m>, xs: &[State]) -> Result<StepOutput, Erro
         last = Ok(est.step(x)?);
     }
     last
+}
+
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// The counter is driven past its cap: it stops there, and sigma stays
+    /// the spread of the recent corrections (finite, and following a change
+    /// of their spread) instead of wrapping to 0 (a division by zero).
+    #[test]
+    fn spread_saturates_and_keeps_its_meaning() {
+        let mut s = Spread {
+            n: Spread::CAP - 2,
+            mean: [0.0; PARAM_DIM],
+            m2: [0.0; PARAM_DIM],
+        };
+        // Corrections of +-1 about 0: their spread is 1.
+        for k in 0..4u32 {
+            let c = if k % 2 == 0 { 1.0 } else { -1.0 };
+            s.push(&[c, 0.0]);
+        }
+        assert_eq!(s.n, Spread::CAP);
+        let sig = s.sigma();
+        assert!(sig.iter().all(|v| v.is_finite()), "{sig:?}");
+        // Worked by hand: from m2 = 0 at n = CAP - 2, the two plain updates
+        // add d^2 = 1 each (the mean moves by 1/CAP only), the two saturated
+        // ones (m2 + 1)(1 - 1/CAP) each: m2 = 4 to within 4/CAP, so sigma =
+        // sqrt(4 / CAP) = 2^-11. Relative tolerance 1e-3: f32 rounding of
+        // four updates is 1e-6, a wrapped or frozen count is off by far more.
+        let want = 2.0f32.powi(-11);
+        assert!((sig[0] - want).abs() < 1e-3 * want, "{} vs {want}", sig[0]);
+        // Saturated, the spread forgets at 1/CAP a step (too slow to watch
+        // in a test; one step's factor is checked exactly).
+        let before = s.m2[1];
+        s.push(&[0.0, 0.0]);
+        assert_eq!(s.n, Spread::CAP);
+        assert!(s.m2[1] <= before);
+        let m2 = s.m2[0];
+        s.push(&[s.mean[0], 0.0]); // d = 0: only the forgetting acts
+        let factor = 1.0 - 1.0 / Spread::CAP as f32;
+        assert_eq!(s.m2[0], factor * m2);
+    }
 }

@@ -262,6 +262,52 @@ fn out_of_distribution_lengths_are_flagged() {
     assert!(verdict(2.0) <= 1 && verdict(5.0) <= 1);
 }
 
+/// Swings smaller than the training range (0.1 to 1.3 rad against
+/// pi/2 to 0.9 pi) at in-range lengths drive the length coordinate far
+/// off, some to lengths that are negative or infinite. Such an estimate is
+/// never trusted, whatever sigma says; the sweep must contain at least one
+/// (else this test checks nothing), and every positive estimate keeps the
+/// sigma verdict.
+#[test]
+fn a_non_physical_length_is_never_trusted() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let spec = m.blob().body.params[0];
+    let threshold = m.blob().body.filter.sigma_threshold;
+    let mut non_physical = 0;
+    for l in [2.0, 2.75, 3.5, 4.25, 5.0] {
+        for k in 0..13 {
+            let theta0 = 0.1 + 0.1 * k as f64;
+            let xs = trainer_core::physics::Pendulum::new(l).rollout(
+                [theta0, 0.0],
+                WINDOW,
+                trainer_core::protocol::DT,
+            );
+            let mut est = Estimator::new(&m);
+            for x in &xs {
+                let out = est.step(&[x[0] as f32, x[1] as f32]).unwrap();
+                let length = out.params[0];
+                if !(length.is_finite() && length > 0.0) {
+                    non_physical += 1;
+                    assert_ne!(
+                        out.trust,
+                        Trust::Trusted,
+                        "L = {l}, theta0 {theta0}: {out:?}"
+                    );
+                } else if out.trust != Trust::Pending {
+                    let by_sigma = out.sigma[0] <= threshold;
+                    assert_eq!(out.trust == Trust::Trusted, by_sigma, "{out:?}");
+                }
+            }
+        }
+    }
+    assert!(non_physical > 0, "no non-physical estimate in the sweep");
+    eprintln!("{non_physical} steps with a non-physical length, none trusted");
+    // The rule itself: positive and finite for a length.
+    assert!(spec.physical(0.5) && !spec.physical(-1.0) && !spec.physical(f32::INFINITY));
+    assert!(!spec.physical(0.0) && !spec.physical(f32::NAN));
+}
+
 /// The shipped length's reading, `q = 7 - 10 / L` on the training range
 /// [2, 5]: golden values worked by hand (`q` = 2 and 5 at the ends, where
 /// the model was trained; `q = 7 - 10/3.5 = 4.142857` at L = 3.5; the
