@@ -179,6 +179,42 @@ fn a_broken_csv_is_refused_naming_file_and_line() {
     );
 }
 
+/// Data at another interval than the weights', or with a gap in time, are
+/// refused with the interval and what to do, not filtered as if they were
+/// at the model's rate.
+#[test]
+fn estimate_refuses_another_interval_and_a_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |name: &str, times: &[f64]| {
+        let csv = dir.path().join(name);
+        let mut text = String::from("rollout,t,theta,theta_dot\n");
+        for t in times {
+            text.push_str(&format!("0,{t},1.5,0\n"));
+        }
+        std::fs::write(&csv, text).unwrap();
+        let out = koopman()
+            .args(["estimate", "--weights"])
+            .arg(shipped_weights())
+            .arg(&csv)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{name} was filtered");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let fast: Vec<f64> = (0..10).map(|k| k as f64 * 0.02).collect();
+    let err = refused("fast.csv", &fast);
+    assert!(
+        err.contains("every 0.02 s") && err.contains("--dt 0.05"),
+        "{err}"
+    );
+    let gap = [0.0, 0.05, 0.1, 0.15, 2.15, 2.2, 2.25];
+    let err = refused("gap.csv", &gap);
+    assert!(
+        err.contains("gap.csv: rollout 0") && err.contains("t = 0.15"),
+        "{err}"
+    );
+}
+
 /// The repository root (the shipped weights live there).
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))

@@ -41,6 +41,8 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read_inputs(&a.data, &a.recording.options()?)?;
+    data::check_interval(&ds, f64::from(model.blob().body.dt))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data[0].display()))?;
     let d = diagnose::diagnose(&model, &ds, g)?;
     if let Some(dir) = &a.out {
         diagnose::write(dir, &d)?;

@@ -27,6 +27,8 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read(&a.data, 2)?;
+    data::check_interval(&ds, f64::from(model.blob().body.dt))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
     if !a.json {
         println!(

@@ -95,3 +95,32 @@ pub fn read_inputs(inputs: &[PathBuf], opts: &import::ImportOptions) -> anyhow::
     }
     import::import(inputs, opts)
 }
+
+/// Checks that every rollout of `ds` is sampled every `dt` seconds (the
+/// interval a model was trained at): the sidecar's interval, and each step
+/// between rows, within 1% of `dt`. The estimator advances one model step
+/// per measurement, so data at another rate, or with a gap, would be
+/// filtered as if it were not: an error says which, and how to resample.
+pub fn check_interval(ds: &Dataset, dt: f64) -> Result<(), String> {
+    let close = |a: f64| (a - dt).abs() <= 0.01 * dt;
+    // As written (a blob's f32 interval, 0.05f32, prints as 0.05).
+    let dt = (dt * 1e9).round() / 1e9;
+    if !close(ds.sidecar.dt) {
+        return Err(format!(
+            "the data are sampled every {} s, the model every {dt} s: resample them (`koopman import --dt {dt}`) or use weights trained at their interval",
+            ds.sidecar.dt
+        ));
+    }
+    for r in &ds.rollouts {
+        if let Some(w) = r.t.windows(2).find(|w| !close(w[1] - w[0])) {
+            return Err(format!(
+                "rollout {}: {} s between t = {} and t = {}, not the model's {dt} s (a gap, or uneven time stamps): resample with `koopman import --dt {dt}`",
+                r.id,
+                w[1] - w[0],
+                w[0],
+                w[1]
+            ));
+        }
+    }
+    Ok(())
+}
