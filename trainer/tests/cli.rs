@@ -215,6 +215,82 @@ fn estimate_refuses_another_interval_and_a_gap() {
     );
 }
 
+/// Recordings a user might bring, each through `koopman diagnose` (which
+/// imports them): every one ends in a result or a clear error (exit 1
+/// with the file named), never a panic (exit 101).
+#[test]
+fn diagnose_never_panics_on_odd_recordings() {
+    let dir = tempfile::tempdir().unwrap();
+    let swing = |t: f64| 1.2 * (2.7 * t).cos() * (-0.05 * t).exp();
+    let table = |rows: Vec<(f64, f64)>| {
+        let mut s = String::from("t,theta\n");
+        for (t, a) in rows {
+            s.push_str(&format!("{t},{a}\n"));
+        }
+        s
+    };
+    let at = |n: usize, h: f64| (0..n).map(move |k| k as f64 * h);
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "flat.csv",
+            table(at(400, 0.02).map(|t| (t, 0.3)).collect()),
+            "flat line",
+        ),
+        (
+            "single.csv",
+            table(at(60, 0.02).map(|t| (t, swing(t))).collect()),
+            "",
+        ),
+        (
+            "degrees.csv",
+            table(at(400, 0.02).map(|t| (t, swing(t).to_degrees())).collect()),
+            "--unit degrees",
+        ),
+        (
+            "gap.csv",
+            table(
+                at(200, 0.02)
+                    .chain(at(200, 0.02).map(|t| t + 104.0))
+                    .map(|t| (t, swing(t)))
+                    .collect(),
+            ),
+            "gap",
+        ),
+        (
+            "uneven.csv",
+            table(
+                at(1000, 0.004)
+                    .enumerate()
+                    .map(|(k, t)| t + 0.0015 * ((k * 37 % 11) as f64 / 11.0 - 0.5))
+                    .map(|t| (t, swing(t)))
+                    .collect(),
+            ),
+            "",
+        ),
+    ];
+    for (name, text, word) in cases {
+        let f = dir.path().join(name);
+        std::fs::write(&f, text).unwrap();
+        let out = koopman()
+            .args(["diagnose", "--weights"])
+            .arg(shipped_weights())
+            .arg(&f)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        let code = out.status.code();
+        assert!(
+            code == Some(0) || code == Some(1),
+            "{name}: exit {code:?}\n{err}"
+        );
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        if !word.is_empty() {
+            assert_eq!(code, Some(1), "{name} was accepted");
+            assert!(err.contains(name) && err.contains(word), "{name}: {err}");
+        }
+    }
+}
+
 /// The repository root (the shipped weights live there).
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))

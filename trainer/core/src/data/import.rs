@@ -16,7 +16,11 @@
 //! (Savitzky-Golay, first derivative, linear or quadratic fit), the window
 //! shrinking at the ends. The angle is smoothed by the same window's mean.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
-//! an optional trim.
+//! an optional trim. Uneven time stamps are differentiated at their times
+//! ([`differentiate_uneven`]). Refused, with the reason: a gap in the time
+//! stamps (more than 5 median steps and more than `dt`), a flat line, and
+//! angles that look like the wrong unit (spanning over two turns, or under
+//! 0.02 rad).
 
 use std::path::Path;
 
@@ -272,6 +276,83 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
     (smooth, rate)
 }
 
+/// The same differentiator on uneven time stamps `t` (an encoder logged
+/// on every count): over the window of `2m + 1` samples around each, the
+/// least-squares line through `(t_k, theta_k)`, its slope the rate and its
+/// value at `t_i` the smoothed angle. On a uniform grid this is
+/// [`differentiate`].
+pub fn differentiate_uneven(t: &[f64], theta: &[f64], m: usize) -> (Vec<f64>, Vec<f64>) {
+    let n = theta.len().min(t.len());
+    let mut smooth = Vec::with_capacity(n);
+    let mut rate = Vec::with_capacity(n);
+    for i in 0..n {
+        let w = m.min(i).min(n - 1 - i).max(1);
+        let lo = i.saturating_sub(w);
+        let hi = (i + w).min(n - 1);
+        let (ts, ys) = (&t[lo..=hi], &theta[lo..=hi]);
+        let k = ts.len() as f64;
+        let tm = ts.iter().sum::<f64>() / k;
+        let ym = ys.iter().sum::<f64>() / k;
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for (x, y) in ts.iter().zip(ys) {
+            sxy += (x - tm) * (y - ym);
+            sxx += (x - tm) * (x - tm);
+        }
+        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        rate.push(slope);
+        smooth.push(if i == 0 || i == n - 1 {
+            theta[i]
+        } else {
+            ym + slope * (t[i] - tm)
+        });
+    }
+    (smooth, rate)
+}
+
+/// Whether the time stamps are uniform: every step within 1e-6 of the mean.
+fn uniform(t: &[f64]) -> bool {
+    let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    t.windows(2).all(|w| ((w[1] - w[0]) - h).abs() <= 1e-6 * h)
+}
+
+/// The median step between time stamps.
+fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Angles that cannot be a pendulum's in the unit given: a span over two
+/// turns (the file is likely in degrees), or under 0.02 rad (1.1 degrees:
+/// likely radians read as degrees, or a swing too small to use), or none
+/// at all (a flat line).
+fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
+    let (lo, hi) = theta
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let span = hi - lo;
+    anyhow::ensure!(
+        span <= 4.0 * std::f64::consts::PI,
+        "the angles span {span:.1} rad, more than two turns: if the file is in degrees, give --unit degrees"
+    );
+    anyhow::ensure!(
+        span > 0.0,
+        "the angle does not change (a flat line): nothing swings"
+    );
+    anyhow::ensure!(
+        span >= 0.02,
+        "the angles span only {span:.4} rad ({:.3} degrees){}",
+        span.to_degrees(),
+        match unit {
+            Unit::Degrees => ": if the file is in radians, give --unit radians",
+            Unit::Radians => ": a swing too small to estimate from",
+        }
+    );
+    Ok(())
+}
+
 /// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).
 fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
     let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);
@@ -283,12 +364,32 @@ fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
 /// Imports one recording as rollout `id`: rate, trim, resample.
 pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Rollout> {
     anyhow::ensure!(rec.t.len() >= 3, "a recording needs at least 3 samples");
+    check_span(&rec.theta, opts.unit)?;
+    // A gap: a step over 5 median steps and over the model's interval is
+    // not interpolated across (that would invent the data in it).
+    let step = median_step(&rec.t);
+    if let Some(w) = rec
+        .t
+        .windows(2)
+        .find(|w| w[1] - w[0] > (5.0 * step).max(opts.dt))
+    {
+        anyhow::bail!(
+            "a gap of {:.3} s in the time stamps after t = {} s: import the parts on either side separately (--start, --duration)",
+            w[1] - w[0],
+            w[0]
+        );
+    }
     let theta_dot = match &rec.theta_dot {
         Some(r) => r.clone(),
         None => {
             let h = (rec.t[rec.t.len() - 1] - rec.t[0]) / (rec.t.len() - 1) as f64;
-            let m = (opts.smooth / h).round().max(1.0) as usize;
-            let (smooth, rate) = differentiate(&rec.theta, h, m);
+            let (smooth, rate) = if uniform(&rec.t) {
+                let m = (opts.smooth / h).round().max(1.0) as usize;
+                differentiate(&rec.theta, h, m)
+            } else {
+                let m = (opts.smooth / step).round().max(1.0) as usize;
+                differentiate_uneven(&rec.t, &rec.theta, m)
+            };
             return to_rollout(
                 &Recording {
                     t: rec.t.clone(),
@@ -404,5 +505,128 @@ mod tests {
         }
         let e = parse(Path::new("p.csv"), "t,theta\n0,1\n0,2\n", &opts).unwrap_err();
         assert!(e.to_string().contains("p.csv:3"), "{e}");
+    }
+
+    #[test]
+    fn uneven_stamps_are_differentiated_at_their_times() {
+        // Stamps jittered by up to 20% of the 1 ms step either way (an
+        // encoder logged per count), a sine of amplitude 1 at 6 rad/s, a
+        // window of +-10 samples. Tolerances: the line's slope is the rate
+        // at the window's mean time, at most 0.25 ms from t_i, so off by at
+        // most 36 x 0.25e-3 = 0.009 (plus a smoothing bias of 6e-4
+        // relative): 0.02. The line's value at t_i misses the curvature,
+        // 36 x (10 ms)^2 / 6 = 6e-4: 2e-3.
+        let t: Vec<f64> = (0..300)
+            .map(|k| 0.001 * (k as f64 + 0.4 * ((k * 7919 % 13) as f64 / 13.0 - 0.5)))
+            .collect();
+        let th: Vec<f64> = t.iter().map(|&x| (6.0 * x).sin()).collect();
+        let (s, d) = differentiate_uneven(&t, &th, 10);
+        for k in (15..285).step_by(17) {
+            assert!(
+                (d[k] - 6.0 * (6.0 * t[k]).cos()).abs() < 0.02,
+                "rate at {k}: {}",
+                d[k]
+            );
+            assert!((s[k] - (6.0 * t[k]).sin()).abs() < 2e-3, "angle at {k}");
+        }
+        // On a uniform grid it is the uniform differentiator.
+        let tu: Vec<f64> = (0..50).map(|k| k as f64 * 0.01).collect();
+        let thu: Vec<f64> = tu.iter().map(|&x| x * x).collect();
+        let (_, a) = differentiate(&thu, 0.01, 3);
+        let (_, b) = differentiate_uneven(&tu, &thu, 3);
+        for k in 3..47 {
+            assert!((a[k] - b[k]).abs() < 1e-9, "{k}: {} vs {}", a[k], b[k]);
+        }
+        // And import takes them without a panic.
+        let rec = Recording {
+            t: t.clone(),
+            theta: th,
+            theta_dot: None,
+        };
+        let r = to_rollout(&rec, 1, &ImportOptions::default()).unwrap();
+        assert!(r.xs.iter().all(|x| x[0].is_finite() && x[1].is_finite()));
+    }
+
+    #[test]
+    fn a_gap_a_flat_line_and_the_wrong_unit_are_named_not_panicked_on() {
+        let opts = ImportOptions::default();
+        let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
+        // 100 s without samples in the middle.
+        let mut t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        t.extend((0..200).map(|k| 102.0 + k as f64 * 0.01));
+        let e = to_rollout(
+            &Recording {
+                theta: swing(&t),
+                t,
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("gap of 100.010 s") && e.contains("t = 1.99"),
+            "{e}"
+        );
+        let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        // A flat line.
+        let e = to_rollout(
+            &Recording {
+                theta: vec![0.3; 200],
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("flat line"), "{e}");
+        // Degrees read as radians: a swing of +-30 "rad".
+        let deg: Vec<f64> = swing(&t).iter().map(|v| 60.0 * v).collect();
+        let e = to_rollout(
+            &Recording {
+                theta: deg,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit degrees"), "{e}");
+        // Radians read as degrees: a swing of 0.017 rad.
+        let tiny: Vec<f64> = swing(&t).iter().map(|v| v.to_radians()).collect();
+        let degrees = ImportOptions {
+            unit: Unit::Degrees,
+            ..ImportOptions::default()
+        };
+        let e = to_rollout(
+            &Recording {
+                theta: tiny,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &degrees,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit radians"), "{e}");
+        // A single swing (0.6 s at 100 Hz) imports.
+        let one: Vec<f64> = t[..60].to_vec();
+        let r = to_rollout(
+            &Recording {
+                theta: swing(&one),
+                t: one,
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap();
+        assert_eq!(r.xs.len(), 12);
     }
 }
