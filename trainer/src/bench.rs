@@ -26,7 +26,7 @@
 //!   straightforward host pipeline.
 //!
 //! For figures with confidence intervals use the criterion bench,
-//! `cargo bench -p host-tests --bench step`, which measures the same
+//! `cargo bench -p trainer --bench step`, which measures the same
 //! functions.
 
 use std::hint::black_box;
