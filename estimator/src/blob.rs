@@ -21,6 +21,11 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
+//! Format 5 added [`TrustSpec`]: the checks of the trust verdict beyond
+//! sigma (the training envelope as an occupancy map, the calibrated range
+//! of the first parameter) and the calibration of the reported standard
+//! deviations, all set by `koopman calibrate` on held-out rollouts.
+//!
 //! # The arena (format version 4)
 //! In order, with the sizes of [`ENCODER_SHAPES`] and [`DECODER_SHAPES`]:
 //! for each encoder layer then each decoder layer, its weight `W` then its
@@ -59,12 +64,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_DIM};
+use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_DIM, State};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 4;
+pub const FORMAT_VERSION: u16 = 5;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -364,6 +369,139 @@ impl FilterSpec {
     }
 }
 
+/// The training envelope: which cells of the normalised measured state
+/// space `(theta, theta_dot)` held-out rollouts from the blob's declared
+/// operating range visit, per bin of the first parameter's coordinate.
+///
+/// A state `x_n` (normalised) falls in cell `(i, j)` with
+/// `i = floor((x_n[0] + extent) / (2 extent) * theta_cells)` and `j` the
+/// same for the rate; outside `[-extent, extent)` it falls in no cell. The
+/// coordinate `q` falls in bin `floor((q - q_lo) / q_width)`. Bit
+/// `(b * theta_cells + i) * rate_cells + j` of [`Envelope::bits`]
+/// (least significant bit first in each byte) is set when bin `b` visits
+/// cell `(i, j)`.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct Envelope<'a> {
+    /// Half-width of the mapped square, in normalised units.
+    pub extent: f32,
+    /// Cells along the angle.
+    pub theta_cells: u16,
+    /// Cells along the rate.
+    pub rate_cells: u16,
+    /// Lower edge of the first coordinate bin.
+    pub q_lo: f32,
+    /// Width of a coordinate bin.
+    pub q_width: f32,
+    /// Number of coordinate bins.
+    pub q_bins: u16,
+    /// The occupancy bits (see the type's docs).
+    #[serde(borrow)]
+    pub bits: &'a [u8],
+}
+
+impl Envelope<'_> {
+    /// Number of bits the map holds.
+    pub const fn cells(&self) -> usize {
+        self.q_bins as usize * self.theta_cells as usize * self.rate_cells as usize
+    }
+
+    /// The cell index `i * rate_cells + j` of the normalised state, or
+    /// `None` outside the mapped square.
+    #[inline]
+    pub fn cell(&self, x_n: &State) -> Option<usize> {
+        let [a, r] = *x_n;
+        let index = |v: f32, n: u16| {
+            let k = libm::floorf((v + self.extent) / (2.0 * self.extent) * f32::from(n));
+            (k >= 0.0 && k < f32::from(n)).then_some(k as usize)
+        };
+        Some(
+            index(a, self.theta_cells)? * usize::from(self.rate_cells) + index(r, self.rate_cells)?,
+        )
+    }
+
+    /// The coordinate bin of `q`, or `None` outside the bins.
+    #[inline]
+    pub fn bin(&self, q: f32) -> Option<usize> {
+        let k = libm::floorf((q - self.q_lo) / self.q_width);
+        (k >= 0.0 && k < f32::from(self.q_bins)).then_some(k as usize)
+    }
+
+    /// Whether bin `bin` visits cell `cell`.
+    #[inline]
+    pub fn visited(&self, bin: usize, cell: usize) -> bool {
+        let per_bin = usize::from(self.theta_cells) * usize::from(self.rate_cells);
+        let k = bin * per_bin + cell;
+        self.bits
+            .get(k / 8)
+            .is_some_and(|byte| byte >> (k % 8) & 1 == 1)
+    }
+
+    /// Whether the normalised state lies in the envelope: at the coordinate
+    /// `q` when one is given, or at any coordinate (`None`).
+    pub fn contains(&self, x_n: &State, q: Option<f32>) -> bool {
+        let Some(cell) = self.cell(x_n) else {
+            return false;
+        };
+        match q {
+            Some(q) => self.bin(q).is_some_and(|b| self.visited(b, cell)),
+            None => (0..usize::from(self.q_bins)).any(|b| self.visited(b, cell)),
+        }
+    }
+
+    fn check(&self) -> Result<(), Error> {
+        let sizes = self.theta_cells > 0 && self.rate_cells > 0 && self.q_bins > 0;
+        if !(sizes && self.bits.len() == self.cells().div_ceil(8)) {
+            return Err(Error::BlobShapeMismatch);
+        }
+        let ok = self.extent.is_finite()
+            && self.extent > 0.0
+            && self.q_lo.is_finite()
+            && self.q_width.is_finite()
+            && self.q_width > 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::BlobNonFinite)
+        }
+    }
+}
+
+/// The trust verdict's calibration (format 5): set at export by
+/// `koopman calibrate` on held-out rollouts from the blob's declared
+/// operating range, so that its in-distribution false-flag rate is a
+/// stated number (recorded beside the blob, in its JSON).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct TrustSpec<'a> {
+    /// The training envelope.
+    #[serde(borrow)]
+    pub envelope: Envelope<'a>,
+    /// Most measurements off the envelope among the last
+    /// [`WINDOW`](crate::WINDOW) that still pass.
+    pub envelope_max_off: u16,
+    /// The first parameter's coordinate range that passes, `[lo, hi]`.
+    pub range: [f32; 2],
+    /// Reported coordinate standard deviation: `sqrt((a s)^2 + b^2)` with
+    /// `s` the filter's, `a` this scale...
+    pub std_scale: [f32; PARAM_DIM],
+    /// ... and `b` this floor (the model's own error, in the coordinate).
+    pub std_floor: [f32; PARAM_DIM],
+}
+
+impl TrustSpec<'_> {
+    fn check(&self) -> Result<(), Error> {
+        self.envelope.check()?;
+        let [lo, hi] = self.range;
+        let finite = lo.is_finite() && hi.is_finite() && lo <= hi;
+        let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
+            && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
+        if finite && stds {
+            Ok(())
+        } else {
+            Err(Error::BlobNonFinite)
+        }
+    }
+}
+
 /// Everything after the header.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
 pub struct Body<'a> {
@@ -380,6 +518,9 @@ pub struct Body<'a> {
     pub params: [ParamSpec<'a>; PARAM_DIM],
     /// Kalman filter settings.
     pub filter: FilterSpec,
+    /// The trust verdict's calibration.
+    #[serde(borrow)]
+    pub trust: TrustSpec<'a>,
     /// 0-3 zero bytes putting `weights` at a multiple of 4 bytes from the
     /// blob's start (see [`Blob::to_slice`], which chooses them).
     #[serde(borrow)]
@@ -548,6 +689,7 @@ impl<'a> Blob<'a> {
         if !(stds_ok && tail_ok) {
             return Err(Error::BlobNonFinite);
         }
-        b.filter.check()
+        b.filter.check()?;
+        b.trust.check()
     }
 }

@@ -5,6 +5,7 @@
 //! - [`blob`]: the weights format (one definition for trainer and device).
 //! - [`model::Model`]: reads a blob in place; encoder, decoder, simulation.
 //! - [`filter::Estimator`]: the 18-dim Kalman filter, step by step.
+//! - [`trust`]: the verdict on each estimate, with its reasons.
 //!
 //! Sizes are the named constants below; the filter's notation (`F`, `H`,
 //! `Q`, `R`, `P`) is defined once in [`filter`].
@@ -22,10 +23,12 @@ pub mod blob;
 mod error;
 pub mod filter;
 pub mod model;
+pub mod trust;
 
 pub use error::Error;
-pub use filter::{Estimator, StepOutput, Trust};
+pub use filter::{Estimator, StepOutput};
 pub use model::Model;
+pub use trust::{Reason, Reasons, Trust};
 
 /// Measured state size: `(theta, theta_dot)`.
 pub const STATE_DIM: usize = 2;

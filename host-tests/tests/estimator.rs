@@ -1,6 +1,6 @@
 //! The estimator on the shipped weights and the protocol's test set.
 
-use estimator::{Error, Estimator, Model, Trust, WINDOW};
+use estimator::{Error, Estimator, Model, Reason, Trust, WINDOW};
 use host_tests::shipped_blob;
 use trainer_core::data::test_set;
 use trainer_core::protocol::TEST_LENGTHS;
@@ -252,7 +252,7 @@ fn out_of_distribution_lengths_are_flagged() {
                 for x in &rollout(l, k)[..WINDOW] {
                     last = Some(est.step(x).unwrap());
                 }
-                last.unwrap().trust == Trust::Untrusted
+                last.unwrap().trust.is_untrusted()
             })
             .count()
     };
@@ -289,14 +289,23 @@ fn a_non_physical_length_is_never_trusted() {
                 let length = out.params[0];
                 if !(length.is_finite() && length > 0.0) {
                     non_physical += 1;
-                    assert_ne!(
-                        out.trust,
-                        Trust::Trusted,
-                        "L = {l}, theta0 {theta0}: {out:?}"
-                    );
+                    if out.trust != Trust::Pending {
+                        assert!(
+                            out.trust.reasons().contains(&Reason::NonPhysical),
+                            "L = {l}, theta0 {theta0}: {out:?}"
+                        );
+                    }
+                    assert!(!out.trust.is_trusted(), "L = {l}, theta0 {theta0}: {out:?}");
                 } else if out.trust != Trust::Pending {
-                    let by_sigma = out.sigma[0] <= threshold;
-                    assert_eq!(out.trust == Trust::Trusted, by_sigma, "{out:?}");
+                    // The sigma check names itself exactly when sigma is
+                    // above the threshold.
+                    let unsettled = out.sigma[0] > threshold;
+                    assert_eq!(
+                        out.trust.reasons().contains(&Reason::Unsettled),
+                        unsettled,
+                        "{out:?}"
+                    );
+                    assert!(!out.trust.reasons().contains(&Reason::NonPhysical));
                 }
             }
         }

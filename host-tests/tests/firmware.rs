@@ -110,12 +110,17 @@ fn have_qemu() -> bool {
     have_thumb_target() && have("qemu-system-arm", found, "apt-get install qemu-system-arm")
 }
 
-fn trust_word(t: Trust) -> &'static str {
-    match t {
-        Trust::Pending => "pending",
-        Trust::Trusted => "trusted",
-        Trust::Untrusted => "untrusted",
-    }
+/// The verdict's reasons as the firmware prints them.
+fn reasons_token(t: &Trust) -> String {
+    let codes: Vec<&str> = t.reasons().iter().map(|r| r.code()).collect();
+    format!(
+        "reasons={}",
+        if codes.is_empty() {
+            "-".to_string()
+        } else {
+            codes.join(",")
+        }
+    )
 }
 
 fn field<'a>(line: &'a str, key: &str) -> &'a str {
@@ -195,6 +200,7 @@ fn firmware_in_qemu_matches_the_host() {
     let tol = |host: f32| 1e-6 * (1.0 + host.abs());
     let mut worst: f32 = 0.0;
     let mut compared = 0;
+    let mut reasons_seen = 0;
     for (id, xs) in &rollouts {
         // The firmware's order: on the gain schedule, then without it.
         for (mode, mut est) in [
@@ -216,11 +222,16 @@ fn firmware_in_qemu_matches_the_host() {
                     worst = worst.max(d);
                     compared += 1;
                 }
-                assert_eq!(w[10], trust_word(h.trust), "{line}");
+                assert_eq!(w[10], h.trust.word(), "{line}");
+                assert_eq!(w[11], reasons_token(&h.trust), "{line}");
+                reasons_seen += usize::from(!h.trust.reasons().is_empty());
             }
         }
     }
     assert!(steps.next().is_none(), "more step lines than measurements");
+    // The test rollouts at L = 0.5 and 1 are untrusted with reasons, so
+    // the reasons were compared, not only the empty lists.
+    assert!(reasons_seen > 0, "no step with reasons compared");
 
     let sizes = lines.iter().find(|l| l.starts_with("sizes")).unwrap();
     let est_bytes: usize = field(sizes, "estimator").parse().unwrap();

@@ -51,7 +51,7 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
         let out = est.step(x).unwrap_or_else(|e| panic!("step {t}: {e}"));
         full.step(x)
             .unwrap_or_else(|e| panic!("step {t}, full recursion: {e}"));
-        last = Some(out);
+        last = Some(out.clone());
         assert!(
             out.coordinate
                 .iter()

@@ -18,7 +18,7 @@
 
 use std::f64::consts::PI;
 
-use estimator::{Estimator, Model, Trust, WINDOW};
+use estimator::{Estimator, Model, WINDOW};
 use host_tests::shipped_blob;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -139,9 +139,9 @@ fn off_distribution_suite() {
             let xs = measure(&c, &mut rng);
             let out = estimator::filter::run(&mut Estimator::new(&m), &states_f32(&xs)).unwrap();
             let (est, truth) = (f64::from(out.params[0]), c.pendulum.length);
-            let trusted = out.trust == Trust::Trusted;
+            let trusted = out.trust.is_trusted();
             row.rollouts += 1;
-            row.flagged += usize::from(out.trust == Trust::Untrusted);
+            row.flagged += usize::from(out.trust.is_untrusted());
             if !((est - truth).abs() <= 0.2 * truth) {
                 row.wrong += 1;
                 row.wrong_trusted += usize::from(trusted);

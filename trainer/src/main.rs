@@ -34,6 +34,9 @@ enum Cmd {
     /// Exports a run's weights: a KLM to one blob, a baseline (CBM, MLP) to
     /// its burnpack with a JSON sidecar.
     Export(cli::export::Args),
+    /// Calibrates a blob's trust verdict on held-out rollouts (and upgrades
+    /// a blob of format 4).
+    Calibrate(cli::calibrate::Args),
     /// Runs the on-device estimator over each rollout of a CSV.
     Estimate(cli::estimate::Args),
     /// Host time per estimator step against the peers, in a few seconds.
@@ -57,6 +60,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Generate(a) => cli::generate::run(a),
         Cmd::Train(a) => cli::train::run(a),
         Cmd::Export(a) => cli::export::run(a),
+        Cmd::Calibrate(a) => cli::calibrate::run(a),
         Cmd::Estimate(a) => cli::estimate::run(a),
         Cmd::Bench(a) => cli::bench::run(a),
         Cmd::Import(a) => cli::import::run(a),

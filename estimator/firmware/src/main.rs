@@ -157,11 +157,18 @@ fn ticks(before: u32, after: u32) -> u32 {
     before.wrapping_sub(after) & 0x00ff_ffff
 }
 
-fn trust_word(t: Trust) -> &'static str {
-    match t {
-        Trust::Pending => "pending",
-        Trust::Trusted => "trusted",
-        Trust::Untrusted => "untrusted",
+/// Writes `reasons=` and the verdict's reasons as codes joined by commas
+/// (`-` for none).
+fn reasons(line: &mut Line, t: &Trust) {
+    line.str("reasons=");
+    if t.reasons().is_empty() {
+        line.str("-");
+    }
+    for (k, r) in t.reasons().iter().enumerate() {
+        if k > 0 {
+            line.str(",");
+        }
+        line.str(r.code());
     }
 }
 
@@ -304,7 +311,9 @@ fn run(line: &mut Line) -> bool {
                 for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
                     line.hex(*v);
                 }
-                line.str(trust_word(out.trust)).send();
+                line.str(out.trust.word()).str(" ");
+                reasons(&mut line, &out.trust);
+                line.send();
                 last = Some(out);
             }
             let before = SYST::get_current();
@@ -318,7 +327,8 @@ fn run(line: &mut Line) -> bool {
                 line.str(" length=").dec(p[0]);
                 line.str(" std=").dec(out.param_std[0]);
                 line.str(" sigma=").dec(out.sigma[0]);
-                line.str(" trust=").str(trust_word(out.trust));
+                line.str(" trust=").str(out.trust.word()).str(" ");
+                reasons(&mut line, &out.trust);
                 line.str(" window_steps=").uint(window_steps);
                 line.str(" window_ticks=").uint(window_ticks);
                 line.str(" after_steps=").uint(after_steps);

@@ -7,7 +7,7 @@
 //!
 //! ```text
 //! protocol -> physics -> data -> metrics -> diagnose
-//!                               \-> reference, bench
+//!                               \-> reference, bench, calibrate
 //! io, plot: helpers that know no domain type
 //! ```
 //!
@@ -15,6 +15,7 @@
 //! alone.
 
 pub mod bench;
+pub mod calibrate;
 pub mod data;
 pub mod diagnose;
 pub mod io;

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use estimator::{Estimator, Trust};
+use estimator::Estimator;
 use trainer_core::data::{self, states_f32};
 
 /// Runs the on-device estimator over each rollout of a CSV.
@@ -40,19 +40,31 @@ pub fn run(a: Args) -> Result<()> {
         let n = a.steps.unwrap_or(r.xs.len()).min(r.xs.len());
         let out = estimator::filter::run(&mut Estimator::new(&model), &states_f32(&r.xs[..n]))
             .map_err(|e| anyhow::anyhow!("{}: rollout {}: {e}", a.data.display(), r.id))?;
-        let trusted = out.trust == Trust::Trusted;
+        let trusted = out.trust.is_trusted();
+        let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         if a.json {
             let v = serde_json::json!({
                 "rollout": r.id, "params": out.params, "param_std": out.param_std,
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
-                "trust": format!("{:?}", out.trust).to_lowercase(), "steps": n,
+                "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
+                "off_envelope": out.off_envelope,
             });
             println!("{v}");
         } else {
             println!(
-                "{:>7}  {:>5}  {:>10.4}  {:>10.4}  {:>10.4e}  {:?}",
-                r.id, n, out.params[0], out.param_std[0], out.sigma[0], out.trust
+                "{:>7}  {:>5}  {:>10.4}  {:>10.4}  {:>10.4e}  {}{}",
+                r.id,
+                n,
+                out.params[0],
+                out.param_std[0],
+                out.sigma[0],
+                out.trust.word(),
+                if reasons.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", reasons.join(", "))
+                }
             );
         }
     }

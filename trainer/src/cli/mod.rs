@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 
 pub mod bench;
+pub mod calibrate;
 pub mod close_loop;
 pub mod diagnose;
 pub mod estimate;

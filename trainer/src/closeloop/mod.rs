@@ -244,13 +244,11 @@ pub fn close_loop(
             steps: r.xs.len(),
             length_physics: *l,
             length_before: ob.params[0],
-            trusted_before: ob.trust == estimator::Trust::Trusted,
+            trusted_before: ob.trust.is_trusted(),
             error_before: eb,
             length_after: a.as_ref().map(|(_, o)| o.params[0]),
             coefficient_after: a.as_ref().map(|(_, o)| o.params[1]),
-            trusted_after: a
-                .as_ref()
-                .map(|(_, o)| o.trust == estimator::Trust::Trusted),
+            trusted_after: a.as_ref().map(|(_, o)| o.trust.is_trusted()),
             error_after: a.as_ref().map(|(e, _)| *e),
         });
     }

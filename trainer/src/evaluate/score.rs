@@ -99,7 +99,7 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
             length_est: last.params[0],
             length_std: last.param_std[0],
             sigma: last.sigma[0],
-            trusted: last.trust == estimator::Trust::Trusted,
+            trusted: last.trust.is_trusted(),
             mse_klm,
             length_trace,
             corrections,

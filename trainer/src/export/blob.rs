@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use burn::nn::Linear;
-use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, ParamSpec, SCHEDULE_AT};
+use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, ParamSpec, SCHEDULE_AT, TrustSpec};
 use estimator::{AUG_DIM, INPUT_DIM, PARAM_DIM};
 
 use super::schedule::{ScheduleCheck, gain_schedule};
@@ -89,6 +89,7 @@ impl BlobParts {
         cfg: &TrainConfig,
         filter: FilterSpec,
         params: [ParamSpec<'a>; PARAM_DIM],
+        trust: TrustSpec<'a>,
     ) -> Blob<'a> {
         Blob {
             header: Header::CURRENT,
@@ -99,6 +100,7 @@ impl BlobParts {
                 norm_s: norm.s.map(|v| v as f32),
                 params,
                 filter,
+                trust,
                 pad: &[],
                 weights: F32s(&self.arena),
             },
@@ -106,16 +108,7 @@ impl BlobParts {
     }
 }
 
-/// Serialises a blob with its CRC.
-pub fn blob_bytes(blob: &Blob<'_>) -> Result<Vec<u8>> {
-    let mut buf = vec![0u8; 1 << 20];
-    let n = blob
-        .to_slice(&mut buf)
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .len();
-    buf.truncate(n);
-    Ok(buf)
-}
+pub use trainer_core::calibrate::blob_bytes;
 
 #[cfg(test)]
 mod tests {
@@ -124,6 +117,7 @@ mod tests {
     use burn::tensor::{Device, Tensor, TensorData};
     use estimator::blob::Reading;
     use estimator::{LATENT_DIM, Model};
+    use trainer_core::calibrate::{CalibrateConfig, map_bytes, permissive};
 
     /// A 2 -> 3 layer with every weight distinct: `W[i][o] = 10 (i + 1) + (o + 1)`,
     /// `b[o] = -(o + 1)`. burn stores it `[d_in, d_out]`; `y = x W + b`.
@@ -156,6 +150,7 @@ mod tests {
 
     #[test]
     fn blob_round_trips_and_computes_what_burn_computes() {
+        let bits = vec![0xffu8; map_bytes(&CalibrateConfig::default())];
         let device = Device::flex();
         device.seed(3);
         let mut enc = Mlp::new(2, estimator::HIDDEN_DIM, LATENT_DIM, &device);
@@ -199,7 +194,13 @@ mod tests {
                 reading: Reading::Direct,
             },
         ];
-        let blob = parts.blob(&norm, &cfg, filter, params);
+        let blob = parts.blob(
+            &norm,
+            &cfg,
+            filter,
+            params,
+            permissive(&CalibrateConfig::default(), [2.0, 5.0], &bits),
+        );
         let bytes = blob_bytes(&blob).unwrap();
         let back = Model::from_bytes(&bytes).unwrap();
         // Exactly the same numbers come back (the blob stores f32 bits),
@@ -234,7 +235,13 @@ mod tests {
         let mut drifting = f.clone();
         drifting[LATENT_DIM * AUG_DIM + LATENT_DIM] = 0.99;
         let parts = BlobParts::new(&enc, &dec, &drifting);
-        let blob = parts.blob(&norm, &cfg, filter, params);
+        let blob = parts.blob(
+            &norm,
+            &cfg,
+            filter,
+            params,
+            permissive(&CalibrateConfig::default(), [2.0, 5.0], &bits),
+        );
         let bytes = blob_bytes(&blob).unwrap();
         assert_eq!(
             Model::from_bytes(&bytes).unwrap_err(),

@@ -7,8 +7,10 @@
 //! - [`schedule`]: the gain schedule over the estimation window, and its
 //!   checks.
 //! - [`blob`]: the arena and the serialised blob.
-//! - here: the filter's settings and the trust threshold, calibrated by
-//!   running the estimator crate's own filter on the training rollouts.
+//! - here: the filter's settings and the sigma threshold, calibrated by
+//!   running the estimator crate's own filter on the training rollouts;
+//!   then the rest of the trust verdict, calibrated on held-out rollouts
+//!   (`trainer_core::calibrate`).
 //! - [`baseline`]: the CBM's and MLP's burnpacks with their sidecars.
 
 use std::path::Path;
@@ -17,6 +19,7 @@ use anyhow::{Context, Result};
 use estimator::blob::{FilterSpec, ParamSpec, Reading};
 use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model, PARAM_DIM};
 use serde::Serialize;
+use trainer_core::calibrate::{CalibrateConfig, Calibration, calibrate, map_bytes, permissive};
 use trainer_core::data::states_f32;
 use trainer_core::io::write_atomic;
 use trainer_core::protocol::{BURN_IN, WINDOW};
@@ -56,6 +59,9 @@ pub struct ExportInfo {
     pub schedule_steps: u16,
     /// How the schedule and its tail were checked.
     pub schedule_check: ScheduleCheck,
+    /// How the trust verdict was calibrated, and what it does on held-out
+    /// rollouts (`trainer_core::calibrate`).
+    pub trust: Calibration,
 }
 
 /// Sigma of the length corrections over the protocol's estimation window.
@@ -161,8 +167,16 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
         schedule_steps,
     };
     let schedule_check = parts.set_schedule(&filter)?;
+    // The trust checks beyond sigma pass everything until calibrated below.
+    let calib_cfg = CalibrateConfig::default();
+    let full_map = vec![0xffu8; map_bytes(&calib_cfg)];
+    let q_range = [
+        params[0].coordinate(params[0].train_range[0]),
+        params[0].coordinate(params[0].train_range[1]),
+    ];
+    let open = permissive(&calib_cfg, q_range, &full_map);
     // Calibrate: sigma over every training rollout's estimation window.
-    let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params, open))?;
     let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut sigmas = ds
         .rollouts
@@ -172,7 +186,13 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
     sigmas.sort_by(f32::total_cmp);
     let max = *sigmas.last().context("no training rollouts")?;
     filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
-    let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params))?;
+    let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params, open))?;
+    let bar = indicatif::ProgressBar::new(0).with_message("calibrating the trust verdict");
+    let (bytes, trust) = calibrate(&bytes, &calib_cfg, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
     Model::from_bytes(&bytes)
         .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
     write_atomic(out, &bytes)?;
@@ -187,6 +207,7 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
         blob_bytes: bytes.len(),
         schedule_steps,
         schedule_check,
+        trust,
     };
     write_atomic(
         &out.with_extension("json"),

@@ -39,7 +39,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use estimator::{Estimator, Model, Trust};
+use estimator::{Estimator, Model};
 use nalgebra::DVector;
 use serde::Serialize;
 
@@ -195,7 +195,7 @@ fn residual_rows(
         let out = estimator::filter::run(&mut Estimator::new(model), &states_f32(&r.xs))
             .map_err(|e| anyhow::anyhow!("rollout {}: {e}", r.id))?;
         let est = out.params[0];
-        let trusted = out.trust == Trust::Trusted;
+        let trusted = out.trust.is_trusted();
         let length_model = if trusted && est > 0.0 {
             f64::from(est)
         } else {

@@ -1,0 +1,191 @@
+//! The whole covariance recursion: the reference path, and the one for a
+//! blob without a schedule.
+
+use super::Estimator;
+use super::kernels::{
+    Cov, LatentSquare, all_finite, combo, dot, inverse_from_ldl, ldl, mirror_upper, tail,
+    unit_lower_inverse, upper_rows,
+};
+use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
+
+impl Estimator<'_> {
+    /// Predict and update without touching `self`, using the structure:
+    /// `F = [C; 0 I]` with `C = [A B]` the latent rows, `H = [I 0]` a
+    /// selection, `P` symmetric, `R` diagonal. Every product is written as
+    /// rows accumulated from scaled rows ([`combo`]), which a vector unit
+    /// runs lane-parallel and which keeps each sum in a fixed order.
+    pub(super) fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
+        let spec = &self.model.blob().body.filter;
+        let c = self.model.koopman_rows();
+        let ct = self.model.koopman_columns();
+
+        // Predict the mean: y' = C g;  p' = p.
+        let mut g = self.g;
+        let (y, nu) = self.predict_latent(z);
+        for (gi, yi) in g.iter_mut().zip(&y) {
+            *gi = *yi;
+        }
+
+        // Predict the covariance: N = C P (the latent rows of F P), then
+        // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
+        // P'_pp = P_pp + Q_p.
+        let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
+        for (ni, ci) in n.iter_mut().zip(c) {
+            *ni = combo(ci.iter().copied().zip(&self.p));
+        }
+        // Only the upper triangle is needed: rows 4g..4g+3 from column 4g.
+        let mut pyy: LatentSquare = [[0.0; LATENT_DIM]; LATENT_DIM];
+        {
+            let (rows, _) = pyy.as_chunks_mut::<4>();
+            let (ns, _) = n.as_chunks::<4>();
+            if let ([r0, r1, r2, r3], [n0, n1, n2, n3]) = (rows, ns) {
+                upper_rows::<16>(r0, n0, ct);
+                upper_rows::<12>(r1, n1, ct);
+                upper_rows::<8>(r2, n2, ct);
+                upper_rows::<4>(r3, n3, ct);
+            }
+        }
+        mirror_upper(&mut pyy);
+        let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
+        for (dst, ni) in pyp.iter_mut().zip(&n) {
+            *dst = *tail(ni);
+        }
+        let mut ppp = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+        for (a, (dst, prow)) in ppp
+            .iter_mut()
+            .zip(self.p.iter().skip(LATENT_DIM))
+            .enumerate()
+        {
+            *dst = *tail(prow);
+            let q = spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            if let Some(d) = dst.get_mut(a) {
+                *d += q;
+            }
+        }
+
+        // S = H P' H^T + R = P'_yy + Q_y + R, factored as L D L^T, and its
+        // inverse Si = X^T D^-1 X with X = L^-1.
+        let mut s = pyy;
+        for (i, srow) in s.iter_mut().enumerate() {
+            if let (Some(d), Some(q), Some(r)) = (srow.get_mut(i), spec.q.get(i), spec.r.get(i)) {
+                *d = (*d + q) + r;
+            }
+        }
+        let s_full = s;
+        let mut d_inv = [0.0f32; LATENT_DIM];
+        ldl(&mut s, &mut d_inv)?;
+        let x = unit_lower_inverse(&s);
+        let si = inverse_from_ldl(&x, &d_inv);
+
+        // With the optimal gain K = P' H^T Si no K is formed:
+        // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
+        // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
+        let w = combo(nu.iter().copied().zip(&si));
+        // M^T, row a = sum_k P'_yp[k][a] Si_k.
+        let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, mta) in mt.iter_mut().enumerate() {
+            *mta = combo(
+                pyp.iter()
+                    .map(|pk| pk.get(a).copied().unwrap_or(0.0))
+                    .zip(&si),
+            );
+        }
+        for (((gi, zi), ri), wi) in g.iter_mut().zip(z).zip(&spec.r).zip(&w) {
+            *gi = zi - ri * wi;
+        }
+        for (gi, mta) in g.iter_mut().skip(LATENT_DIM).zip(&mt) {
+            *gi += dot(mta, &nu);
+        }
+
+        // Covariance by blocks. Joseph's form
+        // P = (I - K H) P' (I - K H)^T + K R K^T, with I - K H =
+        // [R Si, 0; -M^T, I], gives, using S M (T below):
+        //   P_yp = 2 R M - R Si S M,
+        //   P_pp = P'_pp - M^T P'_yp - P'_py M + M^T S M,
+        // which an error in Si (or M) changes only to second order: this
+        // keeps P positive definite when S is ill conditioned. For P_yy
+        // the standard form R - R Si R is kept (its Joseph form costs
+        // two more 16^3 products); it is exactly symmetric as Si is.
+        let mut tt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, tta) in tt.iter_mut().enumerate() {
+            // T^T row a = sum_k M[k][a] S_k (S symmetric).
+            *tta = combo(
+                mt.get(a)
+                    .into_iter()
+                    .flat_map(|mta| mta.iter().copied().zip(&s_full)),
+            );
+        }
+        // (Si T)^T row a = sum_k T[k][a] Si_k.
+        let mut sit = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (sita, tta) in sit.iter_mut().zip(&tt) {
+            *sita = combo(tta.iter().copied().zip(&si));
+        }
+        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
+        for (i, (prow, si_row)) in p.iter_mut().zip(&si).enumerate() {
+            let ri = spec.r.get(i).copied().unwrap_or(0.0);
+            for (pij, (sij, rj)) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)) {
+                *pij = -((ri * rj) * sij);
+            }
+            if let Some(d) = prow.get_mut(i) {
+                *d += ri;
+            }
+            for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
+                let m = mta.get(i).copied().unwrap_or(0.0);
+                let st = sita.get(i).copied().unwrap_or(0.0);
+                *pij = ri * (2.0 * m - st);
+            }
+        }
+        for (a, (prow, ppa)) in p.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
+            let Some(mta) = mt.get(a) else {
+                continue;
+            };
+            for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
+                let (mut cross, mut quad) = (0.0f32, 0.0f32);
+                for (((pk, mka), mkb), tkb) in pyp
+                    .iter()
+                    .zip(mta)
+                    .zip(mtb)
+                    .zip(tt.get(b).into_iter().flatten())
+                {
+                    let pka = pk.get(a).copied().unwrap_or(0.0);
+                    let pkb = pk.get(b).copied().unwrap_or(0.0);
+                    cross += mka * pkb + pka * mkb;
+                    quad += mka * tkb;
+                }
+                *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
+            }
+        }
+        // P_yy is exactly symmetric already (R_i R_j Si_ij, Si mirrored);
+        // the p rows take the transposes of the p columns, and the lower
+        // triangle of P_pp its upper one.
+        let (top, bottom) = p.split_at_mut(LATENT_DIM);
+        for (a, prow) in bottom.iter_mut().enumerate() {
+            for (dst, row) in prow.iter_mut().zip(top.iter()) {
+                *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            }
+        }
+        for a in 1..PARAM_DIM {
+            for b in 0..a {
+                let upper = p
+                    .get(LATENT_DIM + b)
+                    .and_then(|r| r.get(LATENT_DIM + a))
+                    .copied();
+                if let (Some(v), Some(d)) = (
+                    upper,
+                    p.get_mut(LATENT_DIM + a)
+                        .and_then(|r| r.get_mut(LATENT_DIM + b)),
+                ) {
+                    *d = v;
+                }
+            }
+        }
+
+        // Is anything NaN or infinite?
+        let finite = p.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
+        if finite {
+            Ok((g, p))
+        } else {
+            Err(Error::FilterNonFinite)
+        }
+    }
+}

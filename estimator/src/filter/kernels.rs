@@ -1,0 +1,211 @@
+//! The sums and small factorisations the filter's paths share.
+
+use crate::{AUG_DIM, Error, LATENT_DIM, Latent, PARAM_DIM};
+
+/// `P`, stored row-major (it is symmetric, so rows are columns too).
+pub(crate) type Cov = [[f32; AUG_DIM]; AUG_DIM];
+/// A [`LATENT_DIM`] square matrix (`S` and its factors).
+pub(crate) type LatentSquare = [[f32; LATENT_DIM]; LATENT_DIM];
+/// [`PARAM_DIM`] columns of [`LATENT_DIM`]: `U`, `V` of the two-stage form.
+pub(crate) type Sensitivity = [[f32; LATENT_DIM]; PARAM_DIM];
+/// A [`PARAM_DIM`] square matrix (`P_b`).
+pub(crate) type ParamSquare = [[f32; PARAM_DIM]; PARAM_DIM];
+
+/// The last [`PARAM_DIM`] entries of a row: its `p` part.
+#[inline(always)]
+pub(crate) fn tail(r: &[f32; AUG_DIM]) -> &[f32; PARAM_DIM] {
+    r.last_chunk::<PARAM_DIM>().unwrap_or(&[0.0; PARAM_DIM])
+}
+
+/// Whether every value is finite, in one pass without early exit (so it
+/// vectorises).
+#[inline(always)]
+pub(crate) fn all_finite(r: &[f32]) -> bool {
+    r.iter().fold(true, |ok, v| ok & v.is_finite())
+}
+
+#[inline(always)]
+pub(crate) fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
+    a.iter().zip(b).fold(0.0, |acc, (x, y)| acc + x * y)
+}
+
+/// `sum_k a_k x_k` over the terms `(a_k, x_k)`, in the order given: the
+/// filter's one kernel. A product `C = A B` is `C_i = sum_k A_ik B_k` over
+/// rows of `B`, so each entry's sum runs in the order of `k` whatever the
+/// vector width, and the sum stays in registers until it is returned.
+#[inline(always)]
+pub(crate) fn combo<'r, const N: usize>(
+    terms: impl Iterator<Item = (f32, &'r [f32; N])>,
+) -> [f32; N] {
+    let mut acc = [0.0f32; N];
+    for (a, x) in terms {
+        for (o, x) in acc.iter_mut().zip(x) {
+            *o += a * x;
+        }
+    }
+    acc
+}
+
+// `predict_update` splits the latent rows in four groups of four.
+const _: () = assert!(LATENT_DIM == 16);
+
+/// The last `W` columns of rows `N C^T` (`ct` = `C^T`), written into the
+/// last `W` entries of `rows`: the part of four rows of `P'_yy` on and
+/// above the diagonal. Each entry's sum runs in the order of `k`, as in
+/// [`combo`].
+#[inline(always)]
+pub(crate) fn upper_rows<const W: usize>(
+    rows: &mut [[f32; LATENT_DIM]; 4],
+    n: &[[f32; AUG_DIM]; 4],
+    ct: &[[f32; LATENT_DIM]; AUG_DIM],
+) {
+    for (row, ni) in rows.iter_mut().zip(n) {
+        let mut acc = [0.0f32; W];
+        for (a, ctk) in ni.iter().zip(ct) {
+            if let Some(x) = ctk.last_chunk::<W>() {
+                for (o, x) in acc.iter_mut().zip(x) {
+                    *o += a * x;
+                }
+            }
+        }
+        if let Some(dst) = row.last_chunk_mut::<W>() {
+            *dst = acc;
+        }
+    }
+}
+
+/// Copies the upper triangle onto the lower one.
+pub(crate) fn mirror_upper<const N: usize>(m: &mut [[f32; N]; N]) {
+    for i in 1..N {
+        let (above, rest) = m.split_at_mut(i);
+        if let Some(row) = rest.first_mut() {
+            for (dst, src) in row.iter_mut().zip(above.iter()) {
+                *dst = src.get(i).copied().unwrap_or(0.0);
+            }
+        }
+    }
+}
+
+/// `S = L D L^T` in place: the strict lower triangle of `s` becomes the
+/// unit lower triangular `L`; `d_inv` holds `1 / D`. No square roots (they
+/// are software on a Cortex-M4F). Refuses a matrix that is not positive
+/// definite (a pivot not positive and finite).
+pub(crate) fn ldl(s: &mut LatentSquare, d_inv: &mut Latent) -> Result<(), Error> {
+    let mut d = [0.0f32; LATENT_DIM];
+    // v_k = L_jk D_k for the column being finished.
+    let mut v = [0.0f32; LATENT_DIM];
+    for j in 0..LATENT_DIM {
+        let (_, rest) = s.split_at_mut(j);
+        let Some((row_j, below)) = rest.split_first_mut() else {
+            return Err(Error::FilterNotPositiveDefinite);
+        };
+        let mut dj = row_j.get(j).copied().unwrap_or(f32::NAN);
+        for ((vk, ljk), dk) in v.iter_mut().zip(row_j.iter()).zip(&d).take(j) {
+            *vk = ljk * dk;
+            dj -= *vk * ljk;
+        }
+        if !(dj > 0.0 && dj.is_finite()) {
+            return Err(Error::FilterNotPositiveDefinite);
+        }
+        let inv = 1.0 / dj;
+        if let (Some(dd), Some(di)) = (d.get_mut(j), d_inv.get_mut(j)) {
+            *dd = dj;
+            *di = inv;
+        }
+        for row_i in below.iter_mut() {
+            let mut acc = row_i.get(j).copied().unwrap_or(0.0);
+            for (lik, vk) in row_i.iter().zip(&v).take(j) {
+                acc -= lik * vk;
+            }
+            if let Some(lij) = row_i.get_mut(j) {
+                *lij = acc * inv;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `X = L^-1` for the unit lower triangular `L` in the strict lower
+/// triangle of `l` (as [`ldl`] leaves it); `X` is unit lower triangular
+/// too, returned with zeros above the diagonal. Row by row:
+/// `X_i = e_i - sum_{k<i} L_ik X_k` (whole rows: `X_k` is zero after its
+/// `k`-th entry, so the extra terms add zeros).
+pub(crate) fn unit_lower_inverse(l: &LatentSquare) -> LatentSquare {
+    let mut x = [[0.0f32; LATENT_DIM]; LATENT_DIM];
+    for (i, lrow) in l.iter().enumerate() {
+        let (done, rest) = x.split_at_mut(i);
+        let Some(xi) = rest.first_mut() else { break };
+        *xi = combo(lrow.iter().map(|v| -v).zip(done.iter()));
+        if let Some(d) = xi.get_mut(i) {
+            *d = 1.0;
+        }
+    }
+    x
+}
+
+/// `S^-1 = X^T D^-1 X` from `X = L^-1` and `1 / D`: the sum over `k` of
+/// `d_k^-1 x_k x_k^T` (`x_k` row `k` of `X`, zero after its `k`-th
+/// entry). Rows `i <= k` take each term; the upper triangle is then
+/// mirrored, so the result is exactly symmetric.
+pub(crate) fn inverse_from_ldl(x: &LatentSquare, d_inv: &Latent) -> LatentSquare {
+    let mut si = [[0.0f32; LATENT_DIM]; LATENT_DIM];
+    for (i, row) in si.iter_mut().enumerate() {
+        *row = combo(
+            x.iter()
+                .zip(d_inv)
+                .skip(i)
+                .map(|(xk, dk)| (xk.get(i).copied().unwrap_or(0.0) * dk, xk)),
+        );
+    }
+    mirror_upper(&mut si);
+    si
+}
+
+/// The inverse of a [`PARAM_DIM`] square matrix whose determinant is
+/// positive (as `I + P_b U^T W`'s is: its eigenvalues are at least 1);
+/// `None` otherwise.
+pub(crate) fn inverse2(m: &ParamSquare) -> Option<ParamSquare> {
+    const _: () = assert!(PARAM_DIM == 2);
+    let [[a, b], [c, d]] = *m;
+    let det = a * d - b * c;
+    if !(det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    let inv = 1.0 / det;
+    Some([[d * inv, -b * inv], [-c * inv, a * inv]])
+}
+
+/// `a b` for [`PARAM_DIM`] square matrices.
+#[inline(always)]
+pub(crate) fn mul2(a: &ParamSquare, b: &ParamSquare) -> ParamSquare {
+    const _: () = assert!(PARAM_DIM == 2);
+    let [[a00, a01], [a10, a11]] = *a;
+    let [[b00, b01], [b10, b11]] = *b;
+    [
+        [a00 * b00 + a01 * b10, a00 * b01 + a01 * b11],
+        [a10 * b00 + a11 * b10, a10 * b01 + a11 * b11],
+    ]
+}
+
+/// `a^T` for a [`PARAM_DIM`] square matrix.
+#[inline(always)]
+pub(crate) fn transpose2(a: &ParamSquare) -> ParamSquare {
+    let [[a00, a01], [a10, a11]] = *a;
+    [[a00, a10], [a01, a11]]
+}
+
+/// The parameters' standard deviations: the square roots of the
+/// [`PARAM_DIM`] diagonal entries of `m` from `(from, from)` (`P` with
+/// `from = LATENT_DIM`, `P_b` with 0).
+pub(crate) fn sqrt_diag<const N: usize>(m: &[[f32; N]; N], from: usize) -> [f32; PARAM_DIM] {
+    let mut s = [0.0; PARAM_DIM];
+    for (k, s) in s.iter_mut().enumerate() {
+        let v = m
+            .get(from + k)
+            .and_then(|row| row.get(from + k))
+            .copied()
+            .unwrap_or(0.0);
+        *s = libm::sqrtf(v.max(0.0));
+    }
+    s
+}

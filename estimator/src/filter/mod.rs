@@ -1,0 +1,430 @@
+//! The Kalman filter over `[y; p]`.
+//!
+//! Its rooms: `kernels` (the sums and small factorisations every path
+//! uses), `scheduled` (updates on the blob's gain schedule), `two_stage`
+//! (after it), `full` (the whole recursion, and prediction without a
+//! measurement); the verdict is [`crate::trust`]'s.
+//!
+//! # Notation (the maths is the spec)
+//! - state `g = [y; p]`: `y` the [`LATENT_DIM`] latent, `p` the
+//!   [`PARAM_DIM`] physical parameters; [`AUG_DIM`] in all.
+//! - `F`: the augmented Koopman matrix from the blob (its `p` rows are the
+//!   identity: parameters are static).
+//! - `H = [I_16 0]`: the filter observes `z = phi(x_n)`, the encoded
+//!   measurement, and nothing of `p` directly.
+//! - `Q`, `R`: diagonal process and measurement noise from the blob.
+//! - `P`: the state covariance.
+//!
+//! Predict: `g = F g`, `P = F P F^T + Q`. Update: `S = H P H^T + R`,
+//! `K = P H^T S^-1`, `g += K (z - H g)`, `P = (I - K H) P`: the textbook
+//! filter, which `trainer::reference` runs in f64 as the tests' oracle.
+//!
+//! How this crate computes it (same numbers, less work; see
+//! `Estimator::predict_update`): `S = L D L^T` (no square roots) and
+//! `S^-1 = L^-T D^-1 L^-1`. The gain is never formed: `K_y = I - R S^-1`
+//! and `K_p = M^T` with `M = S^-1 P_yp`. So `y = z - R S^-1 nu`,
+//! `p += M^T nu` (`nu = z - y` the innovation) and `P_yy = R - R S^-1 R`.
+//! `P_yp` and `P_pp` take Joseph's form for those blocks,
+//! `(I - K H) P (I - K H)^T + K R K^T`, which an error in `S^-1` changes
+//! only to second order.
+//!
+//! # Three ways to the same numbers
+//! The covariance recursion (`P`, `S`, `K`) does not depend on the
+//! measurements, so for a given blob the gains are the same on every
+//! trajectory. With a blob that carries a gain schedule (the shipped one
+//! does, for the protocol's 63 updates):
+//! 1. updates `1..=T` apply the blob's precomputed `K_n` (computed in f64
+//!    at export): `g = F g + K_n (z - H F g)`, about 600 multiply-adds;
+//! 2. after update `T` the filter runs in Friedland's two-stage form,
+//!    exact for static parameters: a bias-free filter over `y` alone,
+//!    whose gain `K~` has converged by update `T` and is held, and a small
+//!    filter over `p` with the sensitivity `V` of `y` to `p` (see
+//!    `Estimator::two_stage_update`), about 1,750 multiply-adds;
+//! 3. [`Estimator::without_schedule`] runs the recursion above at every
+//!    update, about 15,300 multiply-adds: the reference path, and the one
+//!    for a blob without a schedule.
+//!
+//! The exporter checks in f64 that the two-stage form reproduces the full
+//! `P` at every scheduled update, that `K~` has stopped changing, and that
+//! holding it leaves the parameters' standard deviations within 1e-6
+//! (relative) of the exact recursion for 2000 more updates. The host tests
+//! hold all three paths to the same oracles.
+//!
+//! The correction to the parameters at a step is the `p` part of
+//! `K (z - H g)`. After `burn_in` updates, the population standard
+//! deviation of these corrections (sigma) says how far to trust `p`.
+//!
+//! `p` holds the parameters' coordinates `q`; [`StepOutput::params`] reads
+//! them through each parameter's [`Reading`](crate::blob::Reading) (the
+//! shipped length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
+//! gives them as they are. Corrections, sigma and the trust verdict stay
+//! in the coordinates.
+
+use nalgebra::{ArrayStorage, SMatrix, SVector};
+
+mod full;
+mod kernels;
+mod scheduled;
+mod two_stage;
+
+use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
+
+use crate::model::{Model, Tail};
+use crate::trust::{Checks, EnvelopeWindow, Spread, Trust};
+use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
+
+/// `[y; p]` as a vector.
+pub type AugVector = SVector<f32, AUG_DIM>;
+/// An [`AUG_DIM`] square matrix (`F`, `P`, `Q`).
+pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
+
+/// Largest magnitude a raw measurement may have; larger is refused as not
+/// a real reading (an angle of 1e6 rad is a broken sensor, not a swing).
+pub const MAX_ABS_INPUT: f32 = 1.0e6;
+
+/// What one step reports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepOutput {
+    /// Index of the measurement just consumed (0 for the first).
+    pub t: u32,
+    /// Parameter estimates: the filter's coordinates read through each
+    /// parameter's [`Reading`](crate::blob::Reading).
+    pub params: [f32; PARAM_DIM],
+    /// Their standard deviations, to first order: `|dp/dq|` times the
+    /// coordinate's as calibrated at export, `sqrt((a s)^2 + b^2)` with `s`
+    /// = [`StepOutput::coordinate_std`] and `a`, `b` the blob's
+    /// [`TrustSpec`](crate::blob::TrustSpec) scale and floor (the filter's
+    /// own `P` leaves out the model's error).
+    pub param_std: [f32; PARAM_DIM],
+    /// The filter's coordinates `q` of the parameters (the `p` part of the
+    /// mean; equal to `params` at both ends of their training ranges).
+    pub coordinate: [f32; PARAM_DIM],
+    /// The filter's standard deviations of the coordinates, `sqrt(diag P)`.
+    pub coordinate_std: [f32; PARAM_DIM],
+    /// The correction this step made to each coordinate.
+    pub correction: [f32; PARAM_DIM],
+    /// Population standard deviation of the corrections made at
+    /// `t >= burn_in` so far (0 before there are any), in the coordinates:
+    /// what the trust verdict is calibrated on.
+    pub sigma: [f32; PARAM_DIM],
+    /// The verdict, with its reasons ([`crate::trust`]).
+    pub trust: Trust,
+    /// Measurements off the training envelope among the last
+    /// [`WINDOW`](crate::WINDOW).
+    pub off_envelope: u16,
+}
+
+/// The estimator: a fixed-size filter state over one model.
+///
+/// When the blob carries a gain schedule (its first `T` updates' gains,
+/// computed at export: see [`crate::blob`]), updates `1..=T` apply those
+/// gains and skip the covariance recursion: the same filter, for about a
+/// twenty-fifth of the arithmetic. From update `T + 1` on it runs in
+/// two-stage form from the blob's tail (about a seventh). See the module
+/// docs. [`Estimator::without_schedule`] runs the whole recursion at
+/// every update instead.
+#[derive(Debug, Clone)]
+pub struct Estimator<'m> {
+    model: &'m Model<'m>,
+    g: Aug,
+    /// `P` when the recursion runs here (without the schedule).
+    p: Cov,
+    /// The two-stage form after the schedule: `V` and `P_b`.
+    v: Sensitivity,
+    pb: ParamSquare,
+    param_std: [f32; PARAM_DIM],
+    t: u32,
+    started: bool,
+    scheduled: bool,
+    spread: Spread,
+    window: EnvelopeWindow,
+}
+
+impl<'m> Estimator<'m> {
+    /// A filter that has seen nothing yet; it uses the blob's gain schedule
+    /// if there is one.
+    pub fn new(model: &'m Model<'m>) -> Self {
+        Estimator {
+            model,
+            g: [0.0; AUG_DIM],
+            p: [[0.0; AUG_DIM]; AUG_DIM],
+            v: [[0.0; LATENT_DIM]; PARAM_DIM],
+            pb: [[0.0; PARAM_DIM]; PARAM_DIM],
+            param_std: [0.0; PARAM_DIM],
+            t: 0,
+            started: false,
+            scheduled: true,
+            spread: Spread::default(),
+            window: EnvelopeWindow::default(),
+        }
+    }
+
+    /// A filter that ignores the blob's gain schedule and runs the
+    /// covariance recursion at every update (so [`Estimator::covariance`]
+    /// is always known).
+    pub fn without_schedule(model: &'m Model<'m>) -> Self {
+        Estimator {
+            scheduled: false,
+            ..Estimator::new(model)
+        }
+    }
+
+    /// Forgets everything seen (and keeps whether the schedule is used).
+    pub fn reset(&mut self) {
+        *self = Estimator {
+            scheduled: self.scheduled,
+            ..Estimator::new(self.model)
+        };
+    }
+
+    /// Whether the next update applies a precomputed gain.
+    pub fn on_schedule(&self) -> bool {
+        self.scheduled && self.started && self.t < self.model.schedule_steps()
+    }
+
+    /// The mean `[y; p]`.
+    pub fn mean(&self) -> AugVector {
+        AugVector::from(self.g)
+    }
+
+    /// The covariance `P` after the last update, or `None` after a
+    /// scheduled update before the last one (the schedule stores the
+    /// gains, not every `P`). From update `T` on it is assembled from the
+    /// two-stage form, `[P~ + V P_b V^T, V P_b; P_b V^T, P_b]`.
+    pub fn covariance(&self) -> Option<AugMatrix> {
+        let tail = self.model.schedule_tail();
+        let t_end = self.model.schedule_steps();
+        match tail {
+            Some(tail) if self.scheduled && self.started && self.t >= 1 => {
+                (self.t >= t_end).then(|| self.assembled(tail))
+            }
+            _ => Some(AugMatrix::from_data(ArrayStorage(self.p))),
+        }
+    }
+
+    /// `P` from the two-stage form (upper triangle, then mirrored).
+    fn assembled(&self, tail: &Tail<'_>) -> AugMatrix {
+        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
+        // V P_b, column a = sum_b V_b P_b[b][a].
+        let mut vpb = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+        for (a, col) in vpb.iter_mut().enumerate() {
+            *col = combo(
+                self.pb
+                    .iter()
+                    .map(|row| row.get(a).copied().unwrap_or(0.0))
+                    .zip(&self.v),
+            );
+        }
+        for (i, (row, pt_row)) in p.iter_mut().zip(tail.pt).enumerate() {
+            for (j, (d, pt)) in row.iter_mut().zip(pt_row).enumerate().skip(i) {
+                let outer = vpb.iter().zip(&self.v).fold(0.0f32, |acc, (c, v)| {
+                    acc + c.get(i).copied().unwrap_or(0.0) * v.get(j).copied().unwrap_or(0.0)
+                });
+                *d = pt + outer;
+            }
+            for (d, c) in row.iter_mut().skip(LATENT_DIM).zip(&vpb) {
+                *d = c.get(i).copied().unwrap_or(0.0);
+            }
+        }
+        for (row, pb_row) in p.iter_mut().skip(LATENT_DIM).zip(&self.pb) {
+            for (d, v) in row.iter_mut().skip(LATENT_DIM).zip(pb_row) {
+                *d = *v;
+            }
+        }
+        mirror_upper(&mut p);
+        AugMatrix::from_data(ArrayStorage(p))
+    }
+
+    /// `F` from the model.
+    pub fn f_matrix(&self) -> AugMatrix {
+        AugMatrix::from_fn(|i, j| self.model.f(i, j))
+    }
+
+    /// Consumes one raw measurement `(theta, theta_dot)`.
+    ///
+    /// The first measurement initialises `y = phi(x_0)` and the prior; each
+    /// later one predicts and updates. A non-finite or absurd measurement is
+    /// refused with [`Error::NonFiniteInput`] and the state is unchanged; so
+    /// is every other error.
+    pub fn step(&mut self, raw: &State) -> Result<StepOutput, Error> {
+        if !raw
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_ABS_INPUT)
+        {
+            return Err(Error::NonFiniteInput);
+        }
+        let x_n = self.model.normalise(raw);
+        let z = self.model.encode(&x_n);
+        self.update(&z, Some(&x_n))
+    }
+
+    /// The filter alone: consumes a measurement already encoded,
+    /// `z = phi(x_n)` (what [`Estimator::step`] does after encoding). A
+    /// non-finite `z` is refused with [`Error::NonFiniteInput`] and the
+    /// state is unchanged. Without the measured state the envelope check
+    /// has nothing to look at: it passes.
+    pub fn step_latent(&mut self, z: &Latent) -> Result<StepOutput, Error> {
+        self.update(z, None)
+    }
+
+    /// One measurement, encoded (`z`) and normalised (`x_n`, for the
+    /// envelope check).
+    fn update(&mut self, z: &Latent, x_n: Option<&State>) -> Result<StepOutput, Error> {
+        if !z.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteInput);
+        }
+        let spec = &self.model.blob().body.filter;
+        if !self.started {
+            let mut g = [0.0; AUG_DIM];
+            for (d, s) in g.iter_mut().zip(z.iter().chain(&spec.prior_mean)) {
+                *d = *s;
+            }
+            let mut p = [[0.0; AUG_DIM]; AUG_DIM];
+            for (i, (row, v)) in p.iter_mut().zip(&spec.prior_var).enumerate() {
+                if let Some(d) = row.get_mut(i) {
+                    *d = *v;
+                }
+            }
+            self.g = g;
+            self.p = p;
+            self.param_std = sqrt_diag(&p, LATENT_DIM);
+            self.t = 0;
+            self.started = true;
+            self.spread = Spread::default();
+            self.window = EnvelopeWindow::default();
+            self.observe(x_n);
+            return Ok(self.output([0.0; PARAM_DIM]));
+        }
+        let t = self.t.saturating_add(1);
+        let (mut v, mut pb) = (self.v, self.pb);
+        // P only where the recursion runs here (it is 1296 bytes to copy).
+        let mut p: Option<Cov> = None;
+        let tail = self.model.schedule_tail().filter(|_| self.scheduled);
+        let (g, param_std) = match (tail, self.model.scheduled_gain(t)) {
+            (Some(tail), Some((kt, std))) => {
+                let g = self.scheduled_update(z, kt)?;
+                // After the last scheduled update the filter goes on in
+                // two-stage form from the blob's V_T and P_b,T.
+                if t == self.model.schedule_steps() {
+                    (v, pb) = (*tail.v, *tail.pb);
+                }
+                (g, *std)
+            }
+            (Some(tail), None) => {
+                let g;
+                (g, v, pb) = self.two_stage_update(z, tail)?;
+                (g, sqrt_diag(&pb, 0))
+            }
+            (None, _) => {
+                let (g, new_p) = self.predict_update(z)?;
+                let std = sqrt_diag(&new_p, LATENT_DIM);
+                p = Some(new_p);
+                (g, std)
+            }
+        };
+        let mut correction = [0.0; PARAM_DIM];
+        for (c, (new, old)) in correction.iter_mut().zip(
+            g.iter()
+                .skip(LATENT_DIM)
+                .zip(self.g.iter().skip(LATENT_DIM)),
+        ) {
+            *c = new - old;
+        }
+        self.g = g;
+        if let Some(p) = p {
+            self.p = p;
+        }
+        self.v = v;
+        self.pb = pb;
+        self.param_std = param_std;
+        self.t = t;
+        if t >= u32::from(spec.burn_in) {
+            self.spread.push(&correction);
+        }
+        self.observe(x_n);
+        Ok(self.output(correction))
+    }
+
+    /// Records whether the measured state `x_n` lies in the training
+    /// envelope: at the estimated parameter once past the burn-in, at any
+    /// before (the estimate is still settling).
+    fn observe(&mut self, x_n: Option<&State>) {
+        let Some(x_n) = x_n else {
+            return;
+        };
+        let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
+        let q = tail(&self.g).first().copied().filter(|_| settled);
+        let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
+        self.window.push(!inside);
+    }
+
+    /// The predicted latent `y' = C g = sum_k g_k C^T_k` and the innovation
+    /// `nu = z - y'`: how every update starts.
+    #[inline(always)]
+    fn predict_latent(&self, z: &Latent) -> (Latent, Latent) {
+        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        (y, nu)
+    }
+
+    fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
+        let blob = self.model.blob();
+        let calib = &blob.body.trust;
+        let coordinate = *tail(&self.g);
+        let coordinate_std = self.param_std;
+        let mut params = [0.0; PARAM_DIM];
+        let mut param_std = [0.0; PARAM_DIM];
+        let specs = &blob.body.params;
+        for ((((((p, s), spec), q), q_std), a), b) in params
+            .iter_mut()
+            .zip(param_std.iter_mut())
+            .zip(specs)
+            .zip(&coordinate)
+            .zip(&coordinate_std)
+            .zip(&calib.std_scale)
+            .zip(&calib.std_floor)
+        {
+            *p = spec.read(*q);
+            let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
+            *s = libm::fabsf(spec.slope(*q)) * calibrated;
+        }
+        let sigma = self.spread.sigma();
+        let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
+        let [lo, hi] = calib.range;
+        let checks = Checks {
+            corrections: self.spread.n,
+            settled: sigma.first().copied().unwrap_or(f32::INFINITY)
+                <= blob.body.filter.sigma_threshold,
+            physical: specs
+                .iter()
+                .zip(&params)
+                .all(|(spec, p)| !spec.declared || spec.physical(*p)),
+            in_range: q0 >= lo && q0 <= hi,
+            in_envelope: self.window.count() <= calib.envelope_max_off,
+        };
+        StepOutput {
+            t: self.t,
+            params,
+            param_std,
+            coordinate,
+            coordinate_std,
+            correction,
+            sigma,
+            trust: checks.verdict(),
+            off_envelope: self.window.count(),
+        }
+    }
+}
+
+/// Runs the estimator over `xs` (raw states) and returns the output after
+/// the last one. The state after the call is the filter after `xs`.
+pub fn run<'m>(est: &mut Estimator<'m>, xs: &[State]) -> Result<StepOutput, Error> {
+    let mut last = Err(Error::InputBadLength);
+    for x in xs {
+        last = Ok(est.step(x)?);
+    }
+    last
+}

@@ -1,0 +1,28 @@
+//! Updates `1..=T` on the blob's gain schedule.
+
+use super::Estimator;
+use super::kernels::{all_finite, combo, tail};
+use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent};
+
+impl Estimator<'_> {
+    /// One update with a precomputed gain `K` (given as `K^T`, row `k` for
+    /// innovation `k`): `g' = F g`, `nu = z - y'`, `g = g' + K nu`. Leaves
+    /// `self` alone.
+    pub(super) fn scheduled_update(
+        &self,
+        z: &Latent,
+        kt: &[[f32; AUG_DIM]; LATENT_DIM],
+    ) -> Result<Aug, Error> {
+        let (y, nu) = self.predict_latent(z);
+        let dg = combo(nu.iter().copied().zip(kt));
+        let mut g = self.g;
+        for ((gi, pred), d) in g.iter_mut().zip(y.iter().chain(tail(&self.g))).zip(&dg) {
+            *gi = pred + d;
+        }
+        if all_finite(&g) {
+            Ok(g)
+        } else {
+            Err(Error::FilterNonFinite)
+        }
+    }
+}

@@ -1,0 +1,405 @@
+//! The trust verdict's calibration: the training envelope, the thresholds
+//! of its checks and the scale of the reported standard deviations, set on
+//! held-out rollouts from the blob's declared operating range (lengths
+//! uniform in the first parameter's training range, released from rest at
+//! the protocol's [`THETA0`], g = [`G`], sampled at the blob's interval;
+//! seeds distinct from the training set's and the test set's).
+//!
+//! Three disjoint sets, each from its own seed:
+//! 1. **map** ([`CalibrateConfig::map_rollouts`], [`WINDOW`] steps): the
+//!    occupancy map, from lengths [`CalibrateConfig::map_margin`] beyond
+//!    the declared range on either side. Every measured state after the burn-in sets the bit of
+//!    its cell in the bin of the coordinate the filter holds then.
+//! 2. **calibration** ([`CalibrateConfig::rollouts`], run for
+//!    [`CalibrateConfig::long_steps`]): the thresholds, as conformal
+//!    quantiles, read after [`WINDOW`] measurements and after the long run.
+//!    The envelope's allowance is the `ceil((n + 1)(1 - a))`-th smallest
+//!    count of measurements off the map (`a` =
+//!    [`CalibrateConfig::envelope_alpha`]); the range is the band between
+//!    the `range_alpha / 2` and `1 - range_alpha / 2` quantiles of the
+//!    coordinate. The standard deviations: the floor `b` makes `2 b` cover
+//!    [`CalibrateConfig::coverage`] of the coordinate errors after the long
+//!    run (the model's own error, which `P` does not hold); the scale `a`
+//!    then makes `2 sqrt((a s)^2 + b^2)` cover as many after the window.
+//! 3. **check** (as many again): what the calibrated blob does on rollouts
+//!    it has not seen: the false-flag rate per check and the coverage of
+//!    the length, after the window and after the long run. These are the
+//!    figures the blob's JSON records.
+//!
+//! Sigma's threshold is the exporter's (1.5 times the largest sigma over
+//! the training rollouts) and is left as it is.
+
+use anyhow::{Context, Result, bail};
+use estimator::blob::{Blob, Envelope, TrustSpec};
+use estimator::{Estimator, LATENT_DIM, Model, PARAM_DIM, Reason, StepOutput};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::data::states_f32;
+use crate::physics::Pendulum;
+use crate::protocol::{G, THETA0, WINDOW};
+
+/// How the calibration runs; saved beside the blob with its results.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(default)]
+pub struct CalibrateConfig {
+    /// Seed of the map set; the calibration and check sets use `seed + 1`
+    /// and `seed + 2` (training uses 42, the test set 1000 and up).
+    pub seed: u64,
+    /// Rollouts that fill the occupancy map.
+    pub map_rollouts: usize,
+    /// Rollouts of the calibration set, and of the check set.
+    pub rollouts: usize,
+    /// Length of those rollouts (the long-run checkpoint).
+    pub long_steps: usize,
+    /// The map's rollouts take lengths this fraction beyond the declared
+    /// range on either side, so that the edges of the range are mapped as
+    /// densely as its middle.
+    pub map_margin: f32,
+    /// Cells of the map along the angle.
+    pub theta_cells: u16,
+    /// Cells along the rate.
+    pub rate_cells: u16,
+    /// Half-width of the mapped square, in normalised units.
+    pub extent: f32,
+    /// Coordinate bins.
+    pub q_bins: u16,
+    /// Share of in-distribution rollouts the envelope check may flag.
+    pub envelope_alpha: f64,
+    /// Share the range check may flag (half on each side).
+    pub range_alpha: f64,
+    /// Coverage the standard deviations are set for (within 2 std).
+    pub coverage: f64,
+}
+
+impl Default for CalibrateConfig {
+    fn default() -> Self {
+        CalibrateConfig {
+            seed: 7,
+            map_rollouts: 5000,
+            rollouts: 400,
+            long_steps: 1000,
+            map_margin: 0.05,
+            theta_cells: 128,
+            rate_cells: 32,
+            extent: 2.5,
+            q_bins: 12,
+            envelope_alpha: 0.02,
+            range_alpha: 0.002,
+            coverage: 0.92,
+        }
+    }
+}
+
+/// What the calibration set and what the check set gave.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Calibration {
+    /// The settings.
+    pub config: CalibrateConfig,
+    /// Map cells visited, of all.
+    pub map_cells_visited: usize,
+    /// Map cells in all.
+    pub map_cells: usize,
+    /// The envelope's allowance: measurements off the map among the last
+    /// window that still pass.
+    pub envelope_max_off: u16,
+    /// The coordinate range that passes.
+    pub range: [f32; 2],
+    /// The standard deviations' scale `a`.
+    pub std_scale: f32,
+    /// The standard deviations' floor `b` (coordinate units).
+    pub std_floor: f32,
+    /// On the check set after the window, and after the long run.
+    pub check: [CheckFigures; 2],
+}
+
+/// What the calibrated verdict does on the check set at one checkpoint.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct CheckFigures {
+    /// Measurements seen.
+    pub steps: usize,
+    /// Rollouts.
+    pub rollouts: usize,
+    /// Flagged (untrusted) in all.
+    pub flagged: usize,
+    /// Flagged per reason, in the order of [`Reason::ALL`].
+    pub flagged_by: Vec<(String, usize)>,
+    /// Length within 2 `param_std` of the truth.
+    pub covered: usize,
+    /// Length within 20% of the truth.
+    pub within_20_percent: usize,
+}
+
+/// A held-out rollout: the true length and the raw measurements.
+struct Held {
+    length: f64,
+    xs: Vec<[f32; 2]>,
+}
+
+/// `n` rollouts of `steps` measurements from the declared operating range.
+fn held_out(lengths: [f32; 2], dt: f64, n: usize, steps: usize, seed: u64) -> Vec<Held> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let length = rng.random_range(f64::from(lengths[0])..=f64::from(lengths[1]));
+            let theta0 = rng.random_range(THETA0[0]..=THETA0[1]);
+            let mut p = Pendulum::new(length);
+            p.g = G;
+            Held {
+                length,
+                xs: states_f32(&p.rollout([theta0, 0.0], steps, dt)),
+            }
+        })
+        .collect()
+}
+
+/// A trust section that passes everything (a full map, no range, no
+/// inflation): what an uncalibrated blob carries. `bits` must hold
+/// `ceil(q_bins theta_cells rate_cells / 8)` bytes of `0xff`.
+pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) -> TrustSpec<'a> {
+    let [lo, hi] = q_range;
+    let margin = (hi - lo).max(f32::EPSILON) / 4.0;
+    TrustSpec {
+        envelope: Envelope {
+            extent: cfg.extent,
+            theta_cells: cfg.theta_cells,
+            rate_cells: cfg.rate_cells,
+            q_lo: lo - margin,
+            q_width: (hi - lo + 2.0 * margin) / f32::from(cfg.q_bins.max(1)),
+            q_bins: cfg.q_bins,
+            bits,
+        },
+        envelope_max_off: u16::MAX,
+        range: [f32::MIN, f32::MAX],
+        std_scale: [1.0; PARAM_DIM],
+        std_floor: [0.0; PARAM_DIM],
+    }
+}
+
+/// Measurements per map rollout: two windows and more, so that each
+/// rollout's orbit is covered whatever its period.
+const MAP_STEPS: usize = 4 * WINDOW;
+
+/// Sets the bit of `cell` in `bin` (nothing when either is `None`).
+fn mark(bits: &mut [u8], per_bin: usize, bin: Option<usize>, cell: Option<usize>) {
+    if let (Some(b), Some(c)) = (bin, cell) {
+        let k = b * per_bin + c;
+        if let Some(byte) = bits.get_mut(k / 8) {
+            *byte |= 1 << (k % 8);
+        }
+    }
+}
+
+/// Bytes of the map for `cfg`.
+pub fn map_bytes(cfg: &CalibrateConfig) -> usize {
+    (usize::from(cfg.q_bins) * usize::from(cfg.theta_cells) * usize::from(cfg.rate_cells))
+        .div_ceil(8)
+}
+
+/// The `k`-th smallest (1-based, clamped) of `v`.
+fn kth(v: &mut [f64], k: usize) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[k.clamp(1, v.len()) - 1]
+}
+
+/// The conformal quantile: the `ceil((n + 1) q)`-th smallest of `n` values.
+fn conformal(v: &mut [f64], q: f64) -> f64 {
+    let k = ((v.len() as f64 + 1.0) * q).ceil() as usize;
+    kth(v, k)
+}
+
+/// Runs `xs` through a fresh estimator and returns the outputs after
+/// `WINDOW` and after all of `xs`.
+fn checkpoints(m: &Model<'_>, xs: &[[f32; 2]]) -> Result<(StepOutput, StepOutput)> {
+    let mut est = Estimator::new(m);
+    let mut at_window = None;
+    let mut last = None;
+    for (n, x) in xs.iter().enumerate() {
+        let out = est.step(x).map_err(|e| anyhow::anyhow!("{e}"))?;
+        if n + 1 == WINDOW {
+            at_window = Some(out.clone());
+        }
+        last = Some(out);
+    }
+    Ok((
+        at_window.context("rollout shorter than the window")?,
+        last.context("empty rollout")?,
+    ))
+}
+
+/// Serialises a blob with its CRC.
+pub fn blob_bytes(blob: &Blob<'_>) -> Result<Vec<u8>> {
+    let mut buf = vec![0u8; 1 << 20];
+    let n = blob
+        .to_slice(&mut buf)
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .len();
+    buf.truncate(n);
+    Ok(buf)
+}
+
+/// Calibrates the trust section of `blob` (any trust section it has is
+/// replaced) and returns the new blob's bytes with the figures.
+/// `progress(done, total)` is called as rollouts finish.
+pub fn calibrate(
+    blob: &[u8],
+    cfg: &CalibrateConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Vec<u8>, Calibration)> {
+    if cfg.rollouts < 20 || cfg.long_steps < WINDOW || cfg.map_rollouts == 0 {
+        bail!("calibration needs at least 20 rollouts of at least {WINDOW} steps");
+    }
+    let base = Blob::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec = base.body.params[0];
+    let q_range = [
+        spec.coordinate(spec.train_range[0]),
+        spec.coordinate(spec.train_range[1]),
+    ];
+    let dt = f64::from(base.body.dt);
+    let total = cfg.map_rollouts + 2 * cfg.rollouts;
+    let mut done = 0;
+
+    // 1. The map, from a blob whose map is full (so nothing is flagged).
+    let full = vec![0xffu8; map_bytes(cfg)];
+    let mut draft = base;
+    draft.body.trust = permissive(cfg, q_range, &full);
+    let draft_bytes = blob_bytes(&draft)?;
+    let m = Model::from_bytes(&draft_bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let env = draft.body.trust.envelope;
+    let burn_in = usize::from(base.body.filter.burn_in);
+    let mut bits = vec![0u8; map_bytes(cfg)];
+    let per_bin = usize::from(cfg.theta_cells) * usize::from(cfg.rate_cells);
+    let [lo_l, hi_l] = spec.train_range;
+    let widened = [lo_l * (1.0 - cfg.map_margin), hi_l * (1.0 + cfg.map_margin)];
+    for r in held_out(widened, dt, cfg.map_rollouts, MAP_STEPS, cfg.seed) {
+        let mut est = Estimator::new(&m);
+        let mut seen = Vec::with_capacity(r.xs.len());
+        for (n, x) in r.xs.iter().enumerate() {
+            let q = est.step(x).map_err(|e| anyhow::anyhow!("{e}"))?.coordinate[0];
+            let cell = env.cell(&m.normalise(x));
+            seen.push(cell);
+            if n >= burn_in {
+                mark(&mut bits, per_bin, env.bin(q), cell);
+            }
+        }
+        // The states before the burn-in, in the bin the estimate settles in.
+        let last = env.bin(est.mean()[LATENT_DIM]);
+        for cell in seen {
+            mark(&mut bits, per_bin, last, cell);
+        }
+        done += 1;
+        progress(done, total);
+    }
+    let visited = bits.iter().map(|b| b.count_ones() as usize).sum();
+
+    // 2. Thresholds on the calibration set, with the map in place.
+    let mut mapped = base;
+    mapped.body.trust = TrustSpec {
+        envelope: Envelope { bits: &bits, ..env },
+        ..permissive(cfg, q_range, &full)
+    };
+    let mapped_bytes = blob_bytes(&mapped)?;
+    let m = Model::from_bytes(&mapped_bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cal = held_out(
+        spec.train_range,
+        dt,
+        cfg.rollouts,
+        cfg.long_steps,
+        cfg.seed + 1,
+    );
+    let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
+    for r in &cal {
+        let (a, b) = checkpoints(&m, &r.xs)?;
+        let truth = spec.coordinate(r.length as f32);
+        off.push(f64::from(a.off_envelope.max(b.off_envelope)));
+        qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
+        err_long.push(f64::from((b.coordinate[0] - truth).abs()));
+        win.push((
+            f64::from((a.coordinate[0] - truth).abs()),
+            f64::from(a.coordinate_std[0]),
+        ));
+        done += 1;
+        progress(done, total);
+    }
+    let envelope_max_off =
+        conformal(&mut off, 1.0 - cfg.envelope_alpha).min(f64::from(u16::MAX)) as u16;
+    let lo = kth(
+        &mut qs.clone(),
+        ((qs.len() as f64 + 1.0) * cfg.range_alpha / 2.0).floor() as usize,
+    );
+    let hi = conformal(&mut qs, 1.0 - cfg.range_alpha / 2.0);
+    let std_floor = conformal(&mut err_long, cfg.coverage) / 2.0;
+    let mut scales: Vec<f64> = win
+        .iter()
+        .map(|(e, s)| {
+            ((e * e / 4.0 - std_floor * std_floor).max(0.0)).sqrt() / s.max(f64::MIN_POSITIVE)
+        })
+        .collect();
+    let std_scale = conformal(&mut scales, cfg.coverage).max(1.0);
+
+    // 3. The calibrated blob, and what it does on the check set.
+    let mut calibrated = base;
+    calibrated.body.trust = TrustSpec {
+        envelope: Envelope { bits: &bits, ..env },
+        envelope_max_off,
+        range: [lo as f32, hi as f32],
+        std_scale: [std_scale as f32, 1.0],
+        std_floor: [std_floor as f32, 0.0],
+    };
+    let bytes = blob_bytes(&calibrated)?;
+    let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut check = [CheckFigures::new(WINDOW), CheckFigures::new(cfg.long_steps)];
+    for r in held_out(
+        spec.train_range,
+        dt,
+        cfg.rollouts,
+        cfg.long_steps,
+        cfg.seed + 2,
+    ) {
+        let (a, b) = checkpoints(&m, &r.xs)?;
+        for (fig, out) in check.iter_mut().zip([&a, &b]) {
+            fig.add(out, r.length);
+        }
+        done += 1;
+        progress(done, total);
+    }
+    let report = Calibration {
+        config: cfg.clone(),
+        map_cells_visited: visited,
+        map_cells: map_bytes(cfg) * 8,
+        envelope_max_off,
+        range: [lo as f32, hi as f32],
+        std_scale: std_scale as f32,
+        std_floor: std_floor as f32,
+        check,
+    };
+    Ok((bytes, report))
+}
+
+impl CheckFigures {
+    fn new(steps: usize) -> Self {
+        CheckFigures {
+            steps,
+            rollouts: 0,
+            flagged: 0,
+            flagged_by: Reason::ALL
+                .iter()
+                .map(|r| (r.as_str().to_string(), 0))
+                .collect(),
+            covered: 0,
+            within_20_percent: 0,
+        }
+    }
+
+    fn add(&mut self, out: &StepOutput, truth: f64) {
+        let est = f64::from(out.params[0]);
+        self.rollouts += 1;
+        self.flagged += usize::from(out.trust.is_untrusted());
+        for (reason, (_, n)) in Reason::ALL.iter().zip(self.flagged_by.iter_mut()) {
+            *n += usize::from(out.trust.reasons().contains(reason));
+        }
+        self.covered += usize::from((est - truth).abs() <= 2.0 * f64::from(out.param_std[0]));
+        self.within_20_percent += usize::from((est - truth).abs() <= 0.2 * truth);
+    }
+}
