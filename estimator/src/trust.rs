@@ -25,9 +25,9 @@
 //! The verdict is [`Trust::Trusted`] when no check fails and
 //! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
 //! Everything is fixed-size: the reasons are a [`heapless::Vec`], the
-//! window a [`heapless::HistoryBuf`].
+//! window one `u64` of flags.
 
-use heapless::{HistoryBuf, Vec};
+use heapless::Vec;
 
 use crate::{PARAM_DIM, WINDOW};
 
@@ -170,27 +170,27 @@ impl Checks {
     }
 }
 
-/// Which of the last [`WINDOW`] measurements lay off the envelope, and how
-/// many did.
-#[derive(Debug, Clone, Default)]
+/// Which of the last [`WINDOW`] measurements lay off the envelope: a shift
+/// register, bit 0 the latest. (`heapless::HistoryBuf` was the first
+/// choice; its `write` indexes with a bounds check the optimiser keeps,
+/// which the firmware's no-panic link check caught. Sixty-four flags fit
+/// one word, and counting them is one instruction.)
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(crate) struct EnvelopeWindow {
-    off: HistoryBuf<bool, WINDOW>,
-    count: u16,
+    off: u64,
 }
 
+const _: () = assert!(WINDOW == 64, "the window is one u64 of flags");
+
 impl EnvelopeWindow {
-    /// Records one measurement.
+    /// Records one measurement; the oldest of [`WINDOW`] leaves.
     pub fn push(&mut self, off: bool) {
-        if self.off.is_full() && self.off.oldest().copied().unwrap_or(false) {
-            self.count = self.count.saturating_sub(1);
-        }
-        self.off.write(off);
-        self.count = self.count.saturating_add(u16::from(off));
+        self.off = self.off << 1 | u64::from(off);
     }
 
     /// Measurements off the envelope among the last [`WINDOW`].
     pub fn count(&self) -> u16 {
-        self.count
+        self.off.count_ones() as u16
     }
 }
 

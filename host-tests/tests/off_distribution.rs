@@ -9,12 +9,17 @@
 //! distribution here: a length uniform in [2, 5], the same release angles,
 //! nothing else.
 //!
-//! What is asserted is what the verdict promises today: at most 5% of the
+//! What is asserted is what the verdict promises: at most 5% of the
 //! in-distribution rollouts flagged, every rollout at L = 0.5 and 1
-//! flagged (Table 1's claim), and no non-physical length trusted. The
-//! other axes' wrong-and-trusted counts are printed: they measure what the
-//! verdict does not yet check (`cargo test --release -p host-tests --test
-//! off_distribution -- --nocapture`).
+//! flagged (Table 1's claim), no non-physical length trusted, and at most
+//! one wrong length trusted in 60 (under 2%) on every axis but three.
+//! Those three are held at what the shipped verdict does, so that they
+//! cannot get worse unseen: Coulomb friction and a sensor offset (2 of
+//! 60 each: the friction or the offset is too small within 64 samples to
+//! move the swing off the envelope, and the length is 20 to 30% off), and
+//! g, which no check on the measurements can see (a pendulum of length L
+//! at g moves exactly as one of length 10 L / g at g = 10). The table:
+//! `cargo test --release -p host-tests --test off_distribution -- --nocapture`.
 
 use std::f64::consts::PI;
 
@@ -179,6 +184,19 @@ fn off_distribution_suite() {
         assert_eq!(
             r.non_physical_trusted, 0,
             "{name}: a non-physical length trusted"
+        );
+        // At most 2% wrong and trusted; the known exceptions at most what
+        // the shipped verdict gives (see the module docs).
+        let allowed = match *name {
+            "coulomb 0.2 to 1 rad/s^2" | "sensor offset 0.05 to 0.2 rad" => 2,
+            "g 6 to 14" => 23,
+            _ => N / 50,
+        };
+        assert!(
+            r.wrong_trusted <= allowed,
+            "{name}: {} of {} wrong and trusted, more than {allowed}",
+            r.wrong_trusted,
+            r.rollouts
         );
     }
 }

@@ -59,14 +59,14 @@ fn panic(_: &PanicInfo) -> ! {
 
 /// A line being written; full lines are sent over semihosting.
 struct Line {
-    buf: [u8; 200],
+    buf: [u8; 384],
     len: usize,
 }
 
 impl Line {
     const fn new() -> Self {
         Line {
-            buf: [0; 200],
+            buf: [0; 384],
             len: 0,
         }
     }
@@ -312,7 +312,7 @@ fn run(line: &mut Line) -> bool {
                     line.hex(*v);
                 }
                 line.str(out.trust.word()).str(" ");
-                reasons(&mut line, &out.trust);
+                reasons(line, &out.trust);
                 line.send();
                 last = Some(out);
             }
@@ -328,7 +328,7 @@ fn run(line: &mut Line) -> bool {
                 line.str(" std=").dec(out.param_std[0]);
                 line.str(" sigma=").dec(out.sigma[0]);
                 line.str(" trust=").str(out.trust.word()).str(" ");
-                reasons(&mut line, &out.trust);
+                reasons(line, &out.trust);
                 line.str(" window_steps=").uint(window_steps);
                 line.str(" window_ticks=").uint(window_ticks);
                 line.str(" after_steps=").uint(after_steps);
