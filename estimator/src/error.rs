@@ -47,6 +47,9 @@ pub enum Error {
     InputBadLength,
     /// The filter produced a non-finite state; the step was rolled back.
     FilterNonFinite,
+    /// A prediction without a measurement was asked of a filter that has
+    /// not seen its first measurement (there is no state to advance).
+    FilterNotStarted,
 }
 
 impl Error {
@@ -71,6 +74,7 @@ impl Error {
             }
             Error::InputBadLength => "input: buffer has the wrong length",
             Error::FilterNonFinite => "filter: update produced a non-finite state",
+            Error::FilterNotStarted => "filter: no first measurement to predict from",
         }
     }
 }

@@ -115,3 +115,108 @@ fn filter_matches_adskalman_over_whole_test_rollouts() {
         "largest |q - q_adskalman| (length coordinate) over all steps of all 50 rollouts: {worst:.2e}"
     );
 }
+
+#[test]
+fn predictions_without_a_measurement_match_the_reference_on_every_path() {
+    // Holes in the measurements: inside the schedule (updates 10-14), just
+    // at its end (62-65), after it (200-259), and one single sample (300).
+    // The estimator predicts over each (on the schedule it rebuilds P by
+    // replaying the recursion, after it from the two-stage form, then runs
+    // the whole recursion); the f64 reference predicts too. Tolerances as
+    // in `compare`, looser for the std after 60 predictions in a row (the
+    // latent covariance grows by Q each step and the f32 sums with it).
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    // 400-step rollouts of the declared physics (the test set's are 127).
+    let rollouts: Vec<Vec<[f64; 2]>> = [2.0, 2.7, 3.5, 4.4, 5.0]
+        .iter()
+        .map(|&l| {
+            trainer_core::physics::Pendulum::new(l).rollout(
+                [2.0, 0.0],
+                400,
+                f64::from(m.blob().body.dt),
+            )
+        })
+        .collect();
+    let holes = |t: usize| {
+        (10..15).contains(&t) || (62..66).contains(&t) || (200..260).contains(&t) || t == 300
+    };
+    for first_hole in [10usize, 63, 200] {
+        for (id, r) in rollouts.iter().enumerate() {
+            let xs: Vec<[f32; 2]> = r.iter().map(|x| [x[0] as f32, x[1] as f32]).collect();
+            let mut ests = [Estimator::new(&m), Estimator::without_schedule(&m)];
+            for est in &mut ests {
+                est.step(&xs[0]).unwrap();
+            }
+            let mut oracle = Reference::new(&m, &m.encode(&m.normalise(&xs[0])));
+            let mut worst = 0.0f64;
+            for (t, x) in xs.iter().enumerate().skip(1) {
+                let hole = t >= first_hole && holes(t);
+                if hole {
+                    oracle.predict();
+                } else {
+                    assert!(oracle.step(&m.encode(&m.normalise(x))));
+                }
+                let (l, std) = oracle.length();
+                for (mode, est) in ests.iter_mut().enumerate() {
+                    let out = if hole { est.predict() } else { est.step(x) }.unwrap();
+                    assert_eq!(out.t as usize, t);
+                    if hole {
+                        assert_eq!(out.correction, [0.0; 2], "a prediction corrects nothing");
+                        // Bridged: P is kept from here on, even on what
+                        // was the schedule (which stores only gains).
+                        assert!(est.covariance().is_some() && !est.on_schedule());
+                    }
+                    let err = (out.coordinate[0] as f64 - l).abs();
+                    worst = worst.max(err);
+                    assert!(
+                        err < 1e-3,
+                        "rollout {id} step {t} mode {mode}: L {} vs {l}",
+                        out.coordinate[0]
+                    );
+                    assert!(
+                        ((out.coordinate_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
+                        "rollout {id} step {t} mode {mode} (first hole {first_hole}): std {} vs {std}",
+                        out.coordinate_std[0]
+                    );
+                }
+            }
+            assert!(!ests[0].on_schedule());
+            eprintln!("first hole {first_hole}, rollout {id}: largest |q - q_ref| {worst:.2e}");
+        }
+    }
+}
+
+#[test]
+fn skip_is_predict_repeated_and_refused_before_the_first_measurement() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let ds = test_set(0, &TEST_LENGTHS, &[]);
+    let xs: Vec<[f32; 2]> = ds.rollouts[3]
+        .xs
+        .iter()
+        .map(|x| [x[0] as f32, x[1] as f32])
+        .collect();
+    let mut a = Estimator::new(&m);
+    assert_eq!(a.predict(), Err(estimator::Error::FilterNotStarted));
+    assert_eq!(a.skip(3), Err(estimator::Error::FilterNotStarted));
+    let mut b = a.clone();
+    for x in &xs[..20] {
+        a.step(x).unwrap();
+        b.step(x).unwrap();
+    }
+    let unchanged = a.skip(0).unwrap();
+    assert_eq!(unchanged.t, 19);
+    let skipped = a.skip(5).unwrap();
+    let mut predicted = None;
+    for _ in 0..5 {
+        predicted = Some(b.predict().unwrap());
+    }
+    // The same code in the same order: bit-equal.
+    assert_eq!(Some(skipped), predicted);
+    assert_eq!(a.step(&xs[25]).unwrap(), b.step(&xs[25]).unwrap());
+    // reset() forgets the bridge: the schedule applies again.
+    a.reset();
+    a.step(&xs[0]).unwrap();
+    assert!(a.on_schedule());
+}

@@ -6,9 +6,83 @@ use super::kernels::{
     Cov, LatentSquare, all_finite, combo, dot, inverse_from_ldl, ldl, mirror_upper, tail,
     unit_lower_inverse, upper_rows,
 };
+use crate::blob::FilterSpec;
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
+/// The prior `P`: `diag(prior_var)`.
+pub(super) fn prior_covariance(spec: &FilterSpec) -> Cov {
+    let mut p = [[0.0; AUG_DIM]; AUG_DIM];
+    for (i, (row, v)) in p.iter_mut().zip(&spec.prior_var).enumerate() {
+        if let Some(d) = row.get_mut(i) {
+            *d = *v;
+        }
+    }
+    p
+}
+
 impl Estimator<'_> {
+    /// `P` after the updates made so far, rebuilt by running the
+    /// recursion from the prior (the covariance does not depend on the
+    /// measurements, so any `z` will do): for a filter that has updated on
+    /// the schedule, which keeps the gains and not `P`.
+    pub(super) fn replayed_covariance(&self) -> Result<Cov, Error> {
+        let mut replay = self.clone();
+        replay.p = prior_covariance(&self.model.blob().body.filter);
+        let z = [0.0f32; LATENT_DIM];
+        for _ in 0..self.t {
+            let (_, p) = replay.predict_update(&z)?;
+            replay.p = p;
+        }
+        Ok(replay.p)
+    }
+
+    /// A prediction without an update, leaving `self` alone: `g = F g`
+    /// and `P = F P F^T + Q` from the given `p`, by blocks with
+    /// `F = [C; 0 I]`: `N = C P`, `P_yy = N C^T + Q_y`, `P_yp = N_p`,
+    /// `P_pp = P_pp + Q_p`.
+    pub(super) fn predict_only(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
+        let spec = &self.model.blob().body.filter;
+        let c = self.model.koopman_rows();
+        let mut g = self.g;
+        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        for (gi, yi) in g.iter_mut().zip(&y) {
+            *gi = *yi;
+        }
+        let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
+        for (ni, ci) in n.iter_mut().zip(c) {
+            *ni = combo(ci.iter().copied().zip(p));
+        }
+        let mut out = *p;
+        for (i, (row, ni)) in out.iter_mut().zip(&n).enumerate() {
+            for (j, (d, cj)) in row.iter_mut().zip(c).enumerate() {
+                *d = dot(ni, cj);
+                if i == j {
+                    *d += spec.q.get(i).copied().unwrap_or(0.0);
+                }
+            }
+            for (d, v) in row.iter_mut().skip(LATENT_DIM).zip(tail(ni)) {
+                *d = *v;
+            }
+        }
+        // The p rows: the transposed p columns, and P_pp + Q_p.
+        let (top, bottom) = out.split_at_mut(LATENT_DIM);
+        for (a, prow) in bottom.iter_mut().enumerate() {
+            for (dst, row) in prow.iter_mut().zip(top.iter()) {
+                *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            }
+            if let Some(d) = prow.get_mut(LATENT_DIM + a) {
+                *d += spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+            }
+        }
+        mirror_upper(&mut out);
+        let finite = out.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
+        if finite {
+            Ok((g, out))
+        } else {
+            Err(Error::FilterNonFinite)
+        }
+    }
+
     /// Predict and update without touching `self`, using the structure:
     /// `F = [C; 0 I]` with `C = [A B]` the latent rows, `H = [I 0]` a
     /// selection, `P` symmetric, `R` diagonal. Every product is written as

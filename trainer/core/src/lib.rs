@@ -24,3 +24,4 @@ pub mod physics;
 pub mod plot;
 pub mod protocol;
 pub mod reference;
+pub mod track;

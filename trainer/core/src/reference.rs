@@ -48,6 +48,13 @@ impl Reference {
         Reference { f, q, r, h, g, p }
     }
 
+    /// Predicts one step without a measurement: `g = F g`,
+    /// `P = F P F^T + Q`.
+    pub fn predict(&mut self) {
+        self.g = &self.f * &self.g;
+        self.p = &self.f * &self.p * self.f.transpose() + &self.q;
+    }
+
     /// Predicts and updates with the encoded measurement `z`; false (and
     /// the state unchanged) when `S` cannot be inverted.
     pub fn step(&mut self, z: &[f32]) -> bool {

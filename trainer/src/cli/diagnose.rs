@@ -41,7 +41,7 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read_inputs(&a.data, &a.recording.options()?)?;
-    data::check_interval(&ds, f64::from(model.blob().body.dt))
+    data::check_interval_with(&ds, f64::from(model.blob().body.dt), true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data[0].display()))?;
     let d = diagnose::diagnose(&model, &ds, g)?;
     if let Some(dir) = &a.out {

@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use estimator::Estimator;
-use trainer_core::data::{self, states_f32};
+use trainer_core::data;
+use trainer_core::track::track;
 
 /// Runs the on-device estimator over each rollout of a CSV.
 #[derive(Debug, clap::Args)]
@@ -12,7 +13,8 @@ pub struct Args {
     /// Weights blob.
     #[arg(long, default_value = "weights/pendulum.kkf")]
     weights: PathBuf,
-    /// CSV `rollout,t,theta,theta_dot`.
+    /// CSV `rollout,t,theta,theta_dot` on the model's interval; a gap of
+    /// whole steps in `t` is bridged by the filter's prediction.
     data: PathBuf,
     /// Use only the first N measurements of each rollout (all when absent).
     #[arg(long)]
@@ -27,7 +29,8 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read(&a.data, 2)?;
-    data::check_interval(&ds, f64::from(model.blob().body.dt))
+    let dt = f64::from(model.blob().body.dt);
+    data::check_interval_with(&ds, dt, true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
     if !a.json {
@@ -37,9 +40,9 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     for r in &ds.rollouts {
-        let n = a.steps.unwrap_or(r.xs.len()).min(r.xs.len());
-        let out = estimator::filter::run(&mut Estimator::new(&model), &states_f32(&r.xs[..n]))
-            .map_err(|e| anyhow::anyhow!("{}: rollout {}: {e}", a.data.display(), r.id))?;
+        let tracked = track(&mut Estimator::new(&model), r, dt, a.steps)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+        let (out, n) = (tracked.out, tracked.measured);
         let trusted = out.trust.is_trusted();
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         if a.json {
@@ -48,7 +51,7 @@ pub fn run(a: Args) -> Result<()> {
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                 "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
-                "off_envelope": out.off_envelope,
+                "predicted": tracked.predicted, "off_envelope": out.off_envelope,
             });
             println!("{v}");
         } else {
@@ -66,6 +69,12 @@ pub fn run(a: Args) -> Result<()> {
                     format!(" ({})", reasons.join(", "))
                 }
             );
+            if tracked.predicted > 0 {
+                println!(
+                    "         (gaps in the time stamps: {} steps predicted without a sample)",
+                    tracked.predicted
+                );
+            }
         }
     }
     Ok(())

@@ -166,7 +166,7 @@ pub fn close_loop(
         .rollouts
         .iter()
         .map(|r| {
-            diagnose::physics_length(&r.xs, dt, opts.g)
+            diagnose::physics_length(&r.t, &r.xs, dt, opts.g)
                 .with_context(|| format!("rollout {}: no restoring force", r.id))
         })
         .collect::<Result<_>>()?;

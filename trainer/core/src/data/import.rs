@@ -17,10 +17,10 @@
 //! shrinking at the ends. The angle is smoothed by the same window's mean.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
 //! an optional trim. Uneven time stamps are differentiated at their times
-//! ([`differentiate_uneven`]). Refused, with the reason: a gap in the time
-//! stamps (more than 5 median steps and more than `dt`), a flat line, and
-//! angles that look like the wrong unit (spanning over two turns, or under
-//! 0.02 rad).
+//! ([`differentiate_uneven`]). A gap in the time stamps (more than 5 median
+//! steps and more than `dt`) is left out, not interpolated across
+//! ([`to_rollout`]). Refused, with the reason: a flat line, and angles that
+//! look like the wrong unit (spanning over two turns, or under 0.02 rad).
 
 use std::path::Path;
 
@@ -357,50 +357,61 @@ fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
 fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
     let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);
     let (t0, t1) = (t[k - 1], t[k]);
-    let a = ((at - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    // Repeated stamps (a logger's resolution) have no slope between them.
+    let a = if t1 > t0 {
+        ((at - t0) / (t1 - t0)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
     v[k - 1] * (1.0 - a) + v[k] * a
 }
 
 /// Imports one recording as rollout `id`: rate, trim, resample.
+///
+/// A gap in the time stamps (a step over 5 median steps and over the
+/// model's interval) is not interpolated across, which would invent the
+/// data in it: each part is differentiated on its own and resampled on
+/// the one grid `t_0 + k dt`, and the grid points inside the gap are left
+/// out. The rollout's time stamps then jump by a whole number of steps,
+/// which `koopman estimate` bridges with the filter's prediction
+/// ([`super::model_steps`]). A part of fewer than 3 samples is dropped.
 pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Rollout> {
     anyhow::ensure!(rec.t.len() >= 3, "a recording needs at least 3 samples");
+    anyhow::ensure!(
+        opts.dt > 0.0 && opts.dt.is_finite(),
+        "the output interval {} s is not usable",
+        opts.dt
+    );
     check_span(&rec.theta, opts.unit)?;
-    // A gap: a step over 5 median steps and over the model's interval is
-    // not interpolated across (that would invent the data in it).
     let step = median_step(&rec.t);
-    if let Some(w) = rec
-        .t
-        .windows(2)
-        .find(|w| w[1] - w[0] > (5.0 * step).max(opts.dt))
-    {
-        anyhow::bail!(
-            "a gap of {:.3} s in the time stamps after t = {} s: import the parts on either side separately (--start, --duration)",
-            w[1] - w[0],
-            w[0]
-        );
-    }
-    let theta_dot = match &rec.theta_dot {
-        Some(r) => r.clone(),
-        None => {
-            let h = (rec.t[rec.t.len() - 1] - rec.t[0]) / (rec.t.len() - 1) as f64;
-            let (smooth, rate) = if uniform(&rec.t) {
-                let m = (opts.smooth / h).round().max(1.0) as usize;
-                differentiate(&rec.theta, h, m)
-            } else {
-                let m = (opts.smooth / step).round().max(1.0) as usize;
-                differentiate_uneven(&rec.t, &rec.theta, m)
-            };
-            return to_rollout(
-                &Recording {
-                    t: rec.t.clone(),
-                    theta: smooth,
-                    theta_dot: Some(rate),
-                },
-                id,
-                opts,
-            );
+    let mut parts: Vec<std::ops::Range<usize>> = Vec::new();
+    let mut from = 0;
+    for k in 1..=rec.t.len() {
+        if k == rec.t.len() || rec.t[k] - rec.t[k - 1] > (5.0 * step).max(opts.dt) {
+            if k - from >= 3 {
+                parts.push(from..k);
+            }
+            from = k;
         }
-    };
+    }
+    anyhow::ensure!(
+        !parts.is_empty(),
+        "no stretch of 3 or more samples without a gap in the time stamps"
+    );
+    // Per part: the angle (smoothed where the rate is derived) and the rate.
+    let mut pieces: Vec<(&[f64], Vec<f64>, Vec<f64>)> = Vec::new();
+    for r in parts {
+        let (t, theta) = (&rec.t[r.clone()], &rec.theta[r.clone()]);
+        let (smooth, rate) = match &rec.theta_dot {
+            Some(rate) => (theta.to_vec(), rate[r].to_vec()),
+            None if uniform(t) => {
+                let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+                differentiate(theta, h, (opts.smooth / h).round().max(1.0) as usize)
+            }
+            None => differentiate_uneven(t, theta, (opts.smooth / step).round().max(1.0) as usize),
+        };
+        pieces.push((t, smooth, rate));
+    }
     let t0 = rec.t[0] + opts.start;
     let end = rec.t[rec.t.len() - 1];
     let end = opts.duration.map_or(end, |d| end.min(t0 + d));
@@ -410,12 +421,21 @@ pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Roll
     let mut xs = Vec::with_capacity(n);
     for k in 0..n {
         let at = t0 + k as f64 * opts.dt;
+        // The part this grid point lies in (none: it is inside a gap).
+        let Some((pt, smooth, rate)) = pieces
+            .iter()
+            .find(|(pt, _, _)| at >= pt[0] - 1e-9 && at <= pt[pt.len() - 1] + 1e-9)
+        else {
+            continue;
+        };
         t.push(k as f64 * opts.dt);
-        xs.push([
-            interp(&rec.t, &rec.theta, at),
-            interp(&rec.t, &theta_dot, at),
-        ]);
+        xs.push([interp(pt, smooth, at), interp(pt, rate, at)]);
     }
+    anyhow::ensure!(
+        xs.len() >= 2,
+        "fewer than 2 samples at the model's interval {} s after trimming",
+        opts.dt
+    );
     Ok(Rollout { id, t, xs })
 }
 
@@ -548,27 +568,39 @@ mod tests {
     }
 
     #[test]
-    fn a_gap_a_flat_line_and_the_wrong_unit_are_named_not_panicked_on() {
+    fn a_gap_is_left_out_and_a_flat_line_and_the_wrong_unit_are_named() {
         let opts = ImportOptions::default();
         let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
-        // 100 s without samples in the middle.
+        // 100 s without samples in the middle: both sides on one grid, the
+        // gap's grid points left out, nothing interpolated across it.
         let mut t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         t.extend((0..200).map(|k| 102.0 + k as f64 * 0.01));
-        let e = to_rollout(
+        let r = to_rollout(
             &Recording {
                 theta: swing(&t),
-                t,
+                t: t.clone(),
                 theta_dot: None,
             },
             1,
             &opts,
         )
-        .unwrap_err()
-        .to_string();
-        assert!(
-            e.contains("gap of 100.010 s") && e.contains("t = 1.99"),
-            "{e}"
-        );
+        .unwrap();
+        let jumps: Vec<f64> =
+            r.t.windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|d| *d > 1.5 * opts.dt)
+                .collect();
+        assert_eq!(jumps.len(), 1, "{jumps:?}");
+        assert!((jumps[0] - 100.05).abs() < 1e-6, "{jumps:?}");
+        let steps = super::super::model_steps(&r.t, opts.dt).unwrap();
+        assert_eq!(steps.iter().filter(|&&k| k > 1).count(), 1);
+        // Grid 0, 0.05, ..., 1.95, then 102.00, ..., 103.95: 2079 steps.
+        assert_eq!(steps.iter().map(|&k| u64::from(k)).sum::<u64>(), 2079);
+        for (at, x) in r.t.iter().zip(&r.xs) {
+            // Resampled from the smoothed angle: within 1% of the swing.
+            let want = 0.5 * (3.0 * at).cos();
+            assert!((x[0] - want).abs() < 0.01, "t = {at}: {} vs {want}", x[0]);
+        }
         let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         // A flat line.
         let e = to_rollout(

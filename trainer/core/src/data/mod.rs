@@ -96,12 +96,48 @@ pub fn read_inputs(inputs: &[PathBuf], opts: &import::ImportOptions) -> anyhow::
     import::import(inputs, opts)
 }
 
+/// For each row after the first, how many model steps of `dt` lie between
+/// it and the row before: 1 on an unbroken grid, `k` after a gap of `k - 1`
+/// missing samples (each stamp within 1% of `dt` of the grid). An error
+/// says where the stamps are neither.
+pub fn model_steps(t: &[f64], dt: f64) -> Result<Vec<u32>, String> {
+    t.windows(2)
+        .map(|w| {
+            let k = ((w[1] - w[0]) / dt).round();
+            if k >= 1.0 && k < f64::from(u32::MAX) && (w[1] - w[0] - k * dt).abs() <= 0.01 * dt {
+                Ok(k as u32)
+            } else {
+                Err(format!(
+                    "{} s between t = {} and t = {}: neither the model's {dt} s nor a gap of whole steps (uneven time stamps): resample with `koopman import --dt {dt}`",
+                    w[1] - w[0],
+                    w[0],
+                    w[1]
+                ))
+            }
+        })
+        .collect()
+}
+
+/// How many samples from the start of `t` lie on an unbroken grid of `dt`
+/// (all of them when there is no gap).
+pub fn unbroken(t: &[f64], dt: f64) -> usize {
+    t.windows(2)
+        .position(|w| w[1] - w[0] > 1.5 * dt)
+        .map_or(t.len(), |k| k + 1)
+}
+
 /// Checks that every rollout of `ds` is sampled every `dt` seconds (the
 /// interval a model was trained at): the sidecar's interval, and each step
 /// between rows, within 1% of `dt`. The estimator advances one model step
 /// per measurement, so data at another rate, or with a gap, would be
 /// filtered as if it were not: an error says which, and how to resample.
 pub fn check_interval(ds: &Dataset, dt: f64) -> Result<(), String> {
+    check_interval_with(ds, dt, false)
+}
+
+/// [`check_interval`], and with `gaps` a gap of whole steps is accepted
+/// (for a filter that predicts across it, see [`model_steps`]).
+pub fn check_interval_with(ds: &Dataset, dt: f64, gaps: bool) -> Result<(), String> {
     let close = |a: f64| (a - dt).abs() <= 0.01 * dt;
     // As written (a blob's f32 interval, 0.05f32, prints as 0.05).
     let dt = (dt * 1e9).round() / 1e9;
@@ -112,6 +148,10 @@ pub fn check_interval(ds: &Dataset, dt: f64) -> Result<(), String> {
         ));
     }
     for r in &ds.rollouts {
+        if gaps {
+            model_steps(&r.t, dt).map_err(|e| format!("rollout {}: {e}", r.id))?;
+            continue;
+        }
         if let Some(w) = r.t.windows(2).find(|w| !close(w[1] - w[0])) {
             return Err(format!(
                 "rollout {}: {} s between t = {} and t = {}, not the model's {dt} s (a gap, or uneven time stamps): resample with `koopman import --dt {dt}`",

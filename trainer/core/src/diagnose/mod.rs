@@ -49,10 +49,11 @@ pub mod library;
 pub mod select;
 pub mod verdict;
 
-use crate::data::{Dataset, states_f32};
+use crate::data::{Dataset, unbroken};
 use crate::metrics::{rms, scaled_mse, simulation_mse, spread};
 use crate::physics::{Effect, EffectKind, Pendulum};
 use crate::protocol::ROLLOUT_LEN;
+use crate::track::track;
 use fit::ols;
 use library::{Rows, design};
 use select::{RESOLUTION, T_CRIT, backward, found};
@@ -154,10 +155,14 @@ fn physics_mse(
 }
 
 /// The length of the declared physics, `theta_ddot = -(3 g / 2 L) sin(theta)`,
-/// fitted by least squares to the step-averaged data.
-pub fn physics_length(xs: &[[f64; 2]], dt: f64, g: f64) -> Option<f64> {
+/// fitted by least squares to the step-averaged data (steps across a gap
+/// in `t` left out).
+pub fn physics_length(t: &[f64], xs: &[[f64; 2]], dt: f64, g: f64) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
-    for w in xs.windows(2) {
+    for (w, tw) in xs.windows(2).zip(t.windows(2)) {
+        if tw[1] - tw[0] > 1.5 * dt {
+            continue;
+        }
         let a = (w[1][1] - w[0][1]) / dt;
         let s = 0.5 * (w[0][0].sin() + w[1][0].sin());
         num += -a * s;
@@ -192,19 +197,21 @@ fn residual_rows(
     let mut acc = Vec::new();
     for (ri, r) in ds.rollouts.iter().enumerate() {
         anyhow::ensure!(r.xs.len() >= 8, "rollout {}: too short to diagnose", r.id);
-        let out = estimator::filter::run(&mut Estimator::new(model), &states_f32(&r.xs))
-            .map_err(|e| anyhow::anyhow!("rollout {}: {e}", r.id))?;
+        let out = track(&mut Estimator::new(model), r, dt, None)?.out;
         let est = out.params[0];
         let trusted = out.trust.is_trusted();
         let length_model = if trusted && est > 0.0 {
             f64::from(est)
         } else {
-            physics_length(&r.xs, dt, g)
+            physics_length(&r.t, &r.xs, dt, g)
                 .with_context(|| format!("rollout {}: no restoring force in the data", r.id))?
         };
         let mut p = Pendulum::new(length_model);
         p.g = g;
-        for w in r.xs.windows(2) {
+        for (w, tw) in r.xs.windows(2).zip(r.t.windows(2)) {
+            if tw[1] - tw[0] > 1.5 * dt {
+                continue; // across a gap: no one-step residual
+            }
             let pred = p.step(w[0], 0.0, dt);
             rows.rollout.push(ri);
             rows.r.push((w[1][1] - pred[1]) / dt);
@@ -212,7 +219,7 @@ fn residual_rows(
             rows.w2.push(w2_of(g, length_model));
             acc.push((w[1][1] - w[0][1]) / dt);
         }
-        let n = r.xs.len().min(ROLLOUT_LEN);
+        let n = unbroken(&r.t, dt).min(ROLLOUT_LEN);
         let klm_sim_mse = simulation_mse(model, &r.xs[..n], out.coordinate)?;
         per.push(RolloutDiagnosis {
             rollout: r.id,
@@ -263,12 +270,14 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset, g: f64) -> Result<Diagnosis> {
         .map(|e| Effect::new(e.name, e.coefficient))
         .collect();
     for (ri, (r, d)) in ds.rollouts.iter().zip(per.iter_mut()).enumerate() {
+        // Simulated from x_0 up to the first gap.
+        let xs = &r.xs[..unbroken(&r.t, dt)];
         let w2m = w2_of(g, d.length_model);
         let before_l = 3.0 * g / (2.0 * (w2m + nuisance_only.beta[ri]));
         d.length_fit = 3.0 * g / (2.0 * (w2m + sel.fit.beta[ri]));
-        d.sim_mse_before = physics_mse(&r.xs, dt, g, before_l, &[], 0.0, 0.0);
+        d.sim_mse_before = physics_mse(xs, dt, g, before_l, &[], 0.0, 0.0);
         d.sim_mse_after = physics_mse(
-            &r.xs,
+            xs,
             dt,
             g,
             d.length_fit,
