@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 pub mod generate;
 pub mod import;
+pub mod lab;
 pub mod project_csv;
 pub mod table;
 

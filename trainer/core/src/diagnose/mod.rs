@@ -43,10 +43,12 @@ use estimator::{Estimator, Model};
 use nalgebra::DVector;
 use serde::Serialize;
 
+pub mod energy;
 pub mod figure;
 pub mod fit;
 pub mod library;
 pub mod select;
+pub mod swings;
 pub mod verdict;
 
 use crate::data::{Dataset, unbroken};

@@ -1,0 +1,366 @@
+//! Lab-like recordings: what a user with a real pendulum brings, made from
+//! known physics so that a diagnosis can be scored against the truth.
+//!
+//! Each recording is the angle only, as [`Recording`] holds a parsed file:
+//! - a string (`w^2 = g / L`) or a rod (`w^2 = 3 g / 2 L`) of 0.1 to 1 m
+//!   at `g = 9.81`, released from rest at 0.25 to 1.2 rad;
+//! - 30 to 300 s, sampled at 12 to 100 Hz, at least 12 samples a period
+//!   (a video at 12 Hz films the longer pendulums); evenly, with a
+//!   logger's jittered stamps, or as an encoder logs: one row per count
+//!   (so no row while the angle sits within a count);
+//! - tracking noise of 0.002 to 0.01 rad (Gaussian) and a quantisation of
+//!   0.1 degree, or an encoder's 4096 counts a turn (with a flicker of 0.3
+//!   counts at the edges, and no tracking noise);
+//! - the effects at the sizes real pendulums show ([`Case`]): viscous 0.01
+//!   to 0.1 1/s, Coulomb 0.02 to 0.2 rad/s^2, drag 0.01 to 0.1 1/rad, each
+//!   alone, combined, and with a sensor offset of 0.02 to 0.1 rad; an
+//!   unmodelled periodic forcing at 0.4 to 0.7 or 1.4 to 2.2 times the
+//!   swing's frequency, sized to drive a response of 0.03 to 0.1 rad;
+//!   nothing at all.
+//!
+//! The motion is integrated by RK4 at 0.5 ms; Coulomb friction sticks once
+//! the swing cannot overcome it (a body at rest stays at rest while
+//! `|w^2 sin(theta)|` is below the friction).
+
+use std::f64::consts::PI;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::import::Recording;
+use crate::physics::{Effect, EffectKind};
+
+/// Gravity of the lab, m/s^2.
+pub const LAB_G: f64 = 9.81;
+/// Integration step, s.
+const H: f64 = 5e-4;
+
+/// What a recording holds, as the diagnosis should name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Case {
+    /// No effect: the diagnosis must say `none`.
+    Clean,
+    /// Viscous damping alone.
+    Viscous,
+    /// Coulomb friction alone.
+    Coulomb,
+    /// Quadratic drag alone.
+    Drag,
+    /// Viscous damping and drag.
+    ViscousDrag,
+    /// Viscous damping and Coulomb friction.
+    ViscousCoulomb,
+    /// Viscous damping read with a sensor offset.
+    ViscousOffset,
+    /// Coulomb friction read with a sensor offset.
+    CoulombOffset,
+    /// A periodic forcing at another frequency, plus light viscous
+    /// damping: the diagnosis must say `unexplained`.
+    Forcing,
+}
+
+impl Case {
+    /// Every case, one recording each per seed.
+    pub const ALL: [Case; 9] = [
+        Case::Clean,
+        Case::Viscous,
+        Case::Coulomb,
+        Case::Drag,
+        Case::ViscousDrag,
+        Case::ViscousCoulomb,
+        Case::ViscousOffset,
+        Case::CoulombOffset,
+        Case::Forcing,
+    ];
+
+    /// Its name in tables.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Case::Clean => "clean",
+            Case::Viscous => "viscous",
+            Case::Coulomb => "coulomb",
+            Case::Drag => "drag",
+            Case::ViscousDrag => "viscous+drag",
+            Case::ViscousCoulomb => "viscous+coulomb",
+            Case::ViscousOffset => "viscous+offset",
+            Case::CoulombOffset => "coulomb+offset",
+            Case::Forcing => "forcing",
+        }
+    }
+
+    /// The effects a right diagnosis names, sorted as [`EffectKind::ALL`]
+    /// (none for [`Case::Forcing`], which must be `unexplained`).
+    pub fn expected(self) -> Vec<EffectKind> {
+        use EffectKind::*;
+        match self {
+            Case::Clean | Case::Forcing => vec![],
+            Case::Viscous => vec![Viscous],
+            Case::Coulomb => vec![Coulomb],
+            Case::Drag => vec![Drag],
+            Case::ViscousDrag => vec![Viscous, Drag],
+            Case::ViscousCoulomb => vec![Viscous, Coulomb],
+            Case::ViscousOffset => vec![Viscous, Offset],
+            Case::CoulombOffset => vec![Coulomb, Offset],
+        }
+    }
+}
+
+/// How the time stamps come.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stamps {
+    /// Every `1 / rate` s.
+    Even,
+    /// Every `1 / rate` s, each stamp off by up to 30% of a step.
+    Jittered,
+    /// An encoder's log: one row per count, at the time the count changes.
+    PerCount,
+}
+
+/// One recording's truth and how it was taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabSpec {
+    /// What it holds.
+    pub case: Case,
+    /// Length, m.
+    pub length: f64,
+    /// A string (point mass) rather than a rod.
+    pub string: bool,
+    /// Released from rest at this angle, rad.
+    pub theta0: f64,
+    /// Seconds recorded.
+    pub duration: f64,
+    /// Samples per second (for [`Stamps::PerCount`], the rate the motion
+    /// is resolved at before counts are taken).
+    pub rate: f64,
+    /// How the stamps come.
+    pub stamps: Stamps,
+    /// Tracking noise, rad (standard deviation).
+    pub noise: f64,
+    /// Quantisation step, rad.
+    pub quantum: f64,
+    /// Dynamic effects.
+    pub effects: Vec<Effect>,
+    /// Sensor offset, rad.
+    pub offset: f64,
+    /// Forcing `a sin(omega t)`: `(a, omega)` in rad/s^2 and rad/s.
+    pub forcing: Option<(f64, f64)>,
+}
+
+impl LabSpec {
+    /// `w^2` of the undamped small swing.
+    pub fn w2(&self) -> f64 {
+        if self.string {
+            LAB_G / self.length
+        } else {
+            1.5 * LAB_G / self.length
+        }
+    }
+
+    /// Draws the recording of `case` from `rng`.
+    pub fn draw(case: Case, rng: &mut ChaCha8Rng) -> LabSpec {
+        let string = rng.random_bool(0.6);
+        let stamps = match rng.random_range(0..4) {
+            0 => Stamps::PerCount,
+            1 => Stamps::Jittered,
+            _ => Stamps::Even,
+        };
+        let rate = match stamps {
+            Stamps::PerCount => 1000.0,
+            _ => [12.0, 25.0, 30.0, 50.0, 100.0][rng.random_range(0..5)],
+        };
+        // At least 12 samples a period: T = 2 pi / w >= 12 / rate.
+        let w2_per_l = if string { LAB_G } else { 1.5 * LAB_G };
+        let min_len = (w2_per_l * (12.0 / (2.0 * PI * rate)).powi(2)).max(0.1);
+        let length = rng.random_range(min_len.min(0.9)..1.0);
+        let quantum = match stamps {
+            Stamps::PerCount => 2.0 * PI / 4096.0,
+            _ => 0.1f64.to_radians(),
+        };
+        let u = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| rng.random_range(lo..hi);
+        let viscous = |rng: &mut ChaCha8Rng| Effect::new(EffectKind::Viscous, u(rng, 0.01, 0.1));
+        let coulomb = |rng: &mut ChaCha8Rng| Effect::new(EffectKind::Coulomb, u(rng, 0.02, 0.2));
+        let drag = |rng: &mut ChaCha8Rng| Effect::new(EffectKind::Drag, u(rng, 0.01, 0.1));
+        let mut offset = 0.0;
+        let mut forcing = None;
+        let effects = match case {
+            Case::Clean => vec![],
+            Case::Viscous => vec![viscous(rng)],
+            Case::Coulomb => vec![coulomb(rng)],
+            Case::Drag => vec![drag(rng)],
+            Case::ViscousDrag => vec![viscous(rng), drag(rng)],
+            Case::ViscousCoulomb => vec![viscous(rng), coulomb(rng)],
+            Case::ViscousOffset | Case::CoulombOffset => {
+                offset = u(rng, 0.02, 0.1) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                vec![if case == Case::ViscousOffset {
+                    viscous(rng)
+                } else {
+                    coulomb(rng)
+                }]
+            }
+            Case::Forcing => {
+                let w = (w2_per_l / length).sqrt();
+                let ratio = if rng.random_bool(0.5) {
+                    u(rng, 0.4, 0.7)
+                } else {
+                    u(rng, 1.4, 2.2)
+                };
+                // Sized by the response it drives, 0.03 to 0.1 rad (a
+                // forcing the recording visibly shows):
+                // a / |w^2 - omega^2|.
+                let response = u(rng, 0.03, 0.1);
+                forcing = Some((response * w * w * (1.0 - ratio * ratio).abs(), ratio * w));
+                vec![Effect::new(EffectKind::Viscous, 0.01)]
+            }
+        };
+        LabSpec {
+            case,
+            length,
+            string,
+            theta0: u(rng, 0.25, 1.2),
+            duration: 30.0 * 10f64.powf(u(rng, 0.0, 1.0)),
+            rate,
+            stamps,
+            // An encoder has no tracking noise: its counts flicker at the
+            // edges only.
+            noise: if stamps == Stamps::PerCount {
+                0.3 * quantum
+            } else {
+                u(rng, 0.002, 0.01)
+            },
+            quantum,
+            effects,
+            offset,
+            forcing,
+        }
+    }
+
+    /// `theta_ddot` at `(theta, theta_dot)`, time `t`.
+    fn accel(&self, t: f64, x: [f64; 2]) -> f64 {
+        let mut a = -self.w2() * x[0].sin();
+        for e in &self.effects {
+            a += e.accel(x[0], x[1]);
+        }
+        if let Some((amp, omega)) = self.forcing {
+            a += amp * (omega * t).sin();
+        }
+        a
+    }
+
+    /// The true angle every [`H`] seconds over the recording.
+    fn motion(&self) -> Vec<f64> {
+        let n = (self.duration / H).ceil() as usize + 1;
+        let coulomb: f64 = self
+            .effects
+            .iter()
+            .filter(|e| e.kind == EffectKind::Coulomb)
+            .map(|e| e.coefficient)
+            .sum();
+        let mut out = Vec::with_capacity(n);
+        let mut x = [self.theta0, 0.0];
+        let f = |t: f64, x: [f64; 2]| [x[1], self.accel(t, x)];
+        for k in 0..n {
+            let t = k as f64 * H;
+            out.push(x[0]);
+            // Stuck: at rest, and gravity (and any forcing) below the
+            // friction.
+            // (Coulomb's term is 0 at a zero rate.)
+            let drive = self.accel(t, [x[0], 0.0]);
+            if coulomb > 0.0 && x[1].abs() < 1e-3 && drive.abs() <= coulomb {
+                x[1] = 0.0;
+                continue;
+            }
+            let k1 = f(t, x);
+            let k2 = f(
+                t + H / 2.0,
+                [x[0] + H / 2.0 * k1[0], x[1] + H / 2.0 * k1[1]],
+            );
+            let k3 = f(
+                t + H / 2.0,
+                [x[0] + H / 2.0 * k2[0], x[1] + H / 2.0 * k2[1]],
+            );
+            let k4 = f(t + H, [x[0] + H * k3[0], x[1] + H * k3[1]]);
+            let next = [
+                x[0] + H / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+                x[1] + H / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+            ];
+            // Friction does not reverse the motion: a sign change of the
+            // rate under Coulomb friction ends at rest for this step.
+            x = if coulomb > 0.0 && next[1] * x[1] < 0.0 && drive.abs() <= coulomb {
+                [next[0], 0.0]
+            } else {
+                next
+            };
+        }
+        out
+    }
+
+    /// The recording, its noise drawn from `rng`.
+    pub fn record(&self, rng: &mut ChaCha8Rng) -> Recording {
+        let motion = self.motion();
+        let at = |t: f64| {
+            let k = ((t / H).floor() as usize).min(motion.len() - 2);
+            let a = (t / H - k as f64).clamp(0.0, 1.0);
+            motion[k] * (1.0 - a) + motion[k + 1] * a
+        };
+        let mut gauss = || {
+            let (u1, u2): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random());
+            (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
+        };
+        let quantise = |v: f64| (v / self.quantum).round() * self.quantum;
+        let (mut t, mut theta) = (Vec::new(), Vec::new());
+        match self.stamps {
+            Stamps::Even | Stamps::Jittered => {
+                let n = (self.duration * self.rate) as usize;
+                let step = 1.0 / self.rate;
+                let mut jitter = Vec::with_capacity(n);
+                for _ in 0..n {
+                    jitter.push(if self.stamps == Stamps::Jittered {
+                        0.3 * step * (2.0 * gauss().tanh())
+                    } else {
+                        0.0
+                    });
+                }
+                for (k, j) in jitter.into_iter().enumerate() {
+                    let stamp = (k as f64 * step + j.clamp(-0.3 * step, 0.3 * step)).max(0.0);
+                    // The tracker reports the noisy position, rounded.
+                    let v = at(stamp) + self.offset + self.noise * gauss();
+                    t.push(stamp);
+                    theta.push(quantise(v));
+                }
+            }
+            Stamps::PerCount => {
+                // The count of the noisy angle, resolved at `rate`: a row
+                // when it changes (and the first).
+                let n = (self.duration * self.rate) as usize;
+                let mut last = f64::NAN;
+                for k in 0..n {
+                    let stamp = k as f64 / self.rate;
+                    let v = quantise(at(stamp) + self.offset + self.noise * gauss());
+                    if v != last {
+                        t.push(stamp);
+                        theta.push(v);
+                        last = v;
+                    }
+                }
+            }
+        }
+        Recording {
+            t,
+            theta,
+            theta_dot: None,
+        }
+    }
+}
+
+/// The suite of one seed: one recording of every [`Case`].
+pub fn suite(seed: u64) -> Vec<(LabSpec, Recording)> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Case::ALL
+        .iter()
+        .map(|&case| {
+            let spec = LabSpec::draw(case, &mut rng);
+            let rec = spec.record(&mut rng);
+            (spec, rec)
+        })
+        .collect()
+}
