@@ -10,8 +10,10 @@ use trainer_core::diagnose;
 
 use super::RecordingArgs;
 
-/// Runs the estimator on data, then finds which physical effect explains
-/// what the model leaves.
+/// Finds which physical effect explains what the declared physics leaves:
+/// from each recording's swings (energy lost between turning points, no
+/// differentiation), and by the one-step residual regression with the
+/// estimator's length.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Weights blob.
@@ -35,22 +37,53 @@ pub struct Args {
     recording: RecordingArgs,
 }
 
-/// Runs it.
+/// Runs it: the swing diagnosis of each recording (its own stamps), then
+/// the one-step residual regression of the imported data with the model.
 pub fn run(a: Args) -> Result<()> {
     let g = a.g.unwrap_or_else(|| config_of(&a.weights).g);
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
-    let ds = data::read_inputs(&a.data, &a.recording.options()?)?;
+    let opts = a.recording.options()?;
+    let recs = data::read_recordings(&a.data, &opts)?;
+    let swings = diagnose::diagnose_recordings(&recs);
+    let ds = data::read_inputs(&a.data, &opts)?;
     data::check_interval_with(&ds, f64::from(model.blob().body.dt), true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data[0].display()))?;
-    let d = diagnose::diagnose(&model, &ds, g)?;
+    // The regression needs every rollout long enough; a recording whose
+    // swings were read is diagnosed even where it cannot run.
+    let residual = diagnose::diagnose(&model, &ds, g);
+    let residual = match residual {
+        Ok(d) => Some(d),
+        Err(e) if swings.iter().any(|s| s.diagnosis.is_some()) => {
+            eprintln!("one-step residual regression skipped: {e:#}");
+            None
+        }
+        Err(e) => return Err(e),
+    };
+    if let (Some(dir), Some(d)) = (&a.out, &residual) {
+        diagnose::write(dir, d)?;
+    }
     if let Some(dir) = &a.out {
-        diagnose::write(dir, &d)?;
+        std::fs::create_dir_all(dir)?;
+        trainer_core::io::write_atomic(
+            &dir.join("swings.json"),
+            serde_json::to_string_pretty(&swings)?.as_bytes(),
+        )?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&d)?);
+        let mut v = match &residual {
+            Some(d) => serde_json::to_value(d)?,
+            None => serde_json::json!({}),
+        };
+        v["swings"] = serde_json::to_value(&swings)?;
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        print!("{}", diagnose::summary(&d));
+        println!("swings (energy lost between turning points; offset from their centres):");
+        print!("{}", diagnose::swings_summary(&swings));
+        if let Some(d) = &residual {
+            println!("\none-step residual regression (the model's view):");
+            print!("{}", diagnose::summary(d));
+        }
     }
     Ok(())
 }

@@ -353,6 +353,13 @@ fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
     Ok(())
 }
 
+/// The checks every recording passes before use: at least 3 samples, and
+/// angles that span a plausible swing in `unit` (see `check_span`).
+pub fn check_recording(rec: &Recording, unit: Unit) -> Result<()> {
+    anyhow::ensure!(rec.t.len() >= 3, "a recording needs at least 3 samples");
+    check_span(&rec.theta, unit)
+}
+
 /// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).
 fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
     let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);

@@ -97,6 +97,45 @@ pub fn read_inputs(inputs: &[PathBuf], opts: &import::ImportOptions) -> anyhow::
     import::import(inputs, opts)
 }
 
+/// The angle as recorded, per input, for a diagnosis that reads the
+/// recording itself (its own stamps, no resampling): each rollout of one
+/// project CSV (named `file rollout k`), else each recording parsed as
+/// [`import`] parses it (unit converted, checked for a plausible span).
+pub fn read_recordings(
+    inputs: &[PathBuf],
+    opts: &import::ImportOptions,
+) -> anyhow::Result<Vec<(String, import::Recording)>> {
+    if let [one] = inputs {
+        let head = std::fs::read_to_string(one)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", one.display()))?;
+        if head.starts_with(CSV_HEADER) {
+            return Ok(read(one, 8)?
+                .rollouts
+                .into_iter()
+                .map(|r| {
+                    (
+                        format!("{} rollout {}", one.display(), r.id),
+                        import::Recording {
+                            theta: r.xs.iter().map(|x| x[0]).collect(),
+                            theta_dot: Some(r.xs.iter().map(|x| x[1]).collect()),
+                            t: r.t,
+                        },
+                    )
+                })
+                .collect());
+        }
+    }
+    inputs
+        .iter()
+        .map(|p| {
+            let rec = import::parse_table(&table::Table::read(p)?, opts)?;
+            import::check_recording(&rec, opts.unit)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+            Ok((p.display().to_string(), rec))
+        })
+        .collect()
+}
+
 /// For each row after the first, how many model steps of `dt` lie between
 /// it and the row before: 1 on an unbroken grid, `k` after a gap of `k - 1`
 /// missing samples (each stamp within 1% of `dt` of the grid). An error

@@ -320,6 +320,73 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset, g: f64) -> Result<Diagnosis> {
     })
 }
 
+/// The swing diagnosis ([`swings`], [`energy`]) of one recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordingSwings {
+    /// Where it came from.
+    pub source: String,
+    /// What the swings say, when they could be measured.
+    pub diagnosis: Option<energy::SwingDiagnosis>,
+    /// Why not, otherwise.
+    pub error: Option<String>,
+}
+
+/// The swing diagnosis of a recording's angle at its own time stamps.
+pub fn diagnose_recording(t: &[f64], theta: &[f64]) -> Result<energy::SwingDiagnosis> {
+    energy::diagnose_swings(&swings::swings(t, theta)?)
+}
+
+/// [`diagnose_recording`] of each `(source, recording)`.
+pub fn diagnose_recordings(
+    recs: &[(String, crate::data::import::Recording)],
+) -> Vec<RecordingSwings> {
+    recs.iter()
+        .map(
+            |(source, rec)| match diagnose_recording(&rec.t, &rec.theta) {
+                Ok(d) => RecordingSwings {
+                    source: source.clone(),
+                    diagnosis: Some(d),
+                    error: None,
+                },
+                Err(e) => RecordingSwings {
+                    source: source.clone(),
+                    diagnosis: None,
+                    error: Some(e.to_string()),
+                },
+            },
+        )
+        .collect()
+}
+
+/// The swing diagnoses as lines for the terminal.
+pub fn swings_summary(list: &[RecordingSwings]) -> String {
+    let mut s = String::new();
+    for r in list {
+        match (&r.diagnosis, &r.error) {
+            (Some(d), _) => {
+                s.push_str(&format!(
+                    "{}: {} ({} turning points, amplitude {:.3} -> {:.3} rad, noise {:.4} rad, w {:.3} rad/s)
+",
+                    r.source, d.verdict, d.turns, d.amplitude[0], d.amplitude[1], d.noise, d.w
+                ));
+                for e in &d.effects {
+                    s.push_str(&format!(
+                        "  {} {:.5} {} (95% CI {:.5} .. {:.5})\n",
+                        e.name,
+                        e.coefficient,
+                        e.name.unit(),
+                        e.ci[0],
+                        e.ci[1]
+                    ));
+                }
+            }
+            (None, Some(e)) => s.push_str(&format!("{}: no swing diagnosis: {e}\n", r.source)),
+            (None, None) => {}
+        }
+    }
+    s
+}
+
 /// Writes `diagnosis.json` and `residual.png` into `dir`.
 pub fn write(dir: &Path, d: &Diagnosis) -> Result<()> {
     std::fs::create_dir_all(dir)?;

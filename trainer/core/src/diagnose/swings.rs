@@ -108,7 +108,11 @@ fn fit_window(t: &[f64], m: &[f64], centre: f64, w: f64) -> Option<WindowFit> {
             num += resid[i] * resid[i + 1];
         }
     }
-    let rho = if den > 0.0 { (num / den).clamp(0.0, 0.95) } else { 0.0 };
+    let rho = if den > 0.0 {
+        (num / den).clamp(0.0, 0.95)
+    } else {
+        0.0
+    };
     let rms = (resid.norm_squared() / (n - BASIS) as f64 * (1.0 + rho) / (1.0 - rho)).sqrt();
     let mut beta = [0.0; BASIS];
     for (j, v) in beta.iter_mut().enumerate() {
@@ -232,9 +236,7 @@ pub fn swings(t: &[f64], m: &[f64]) -> Result<Swings> {
         let var_a = (g.transpose() * &fit.cov * &g)[(0, 0)].max(0.0);
         let amplitude_sd = fit.rms * var_a.sqrt();
         let s = peak.signum();
-        if peak.abs() < (4.0 * amplitude_sd).max(3.0 * quantum)
-            || (sign != 0.0 && s == sign)
-        {
+        if peak.abs() < (4.0 * amplitude_sd).max(3.0 * quantum) || (sign != 0.0 && s == sign) {
             // Below the noise, or not the alternation of a swing: the
             // swinging is over.
             break;
