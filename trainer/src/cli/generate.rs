@@ -1,4 +1,5 @@
-//! `koopman generate`: the protocol's training and test sets.
+//! `koopman generate`: the protocol's training and test sets, or lab-like
+//! recordings.
 
 use std::path::PathBuf;
 
@@ -26,10 +27,19 @@ pub struct Args {
     /// e.g. viscous:0.1 or offset:0.05.
     #[arg(long, value_parser = Effect::parse)]
     effect: Vec<Effect>,
+    /// Instead, write lab-like recordings of this seed (one per case of
+    /// `trainer_core::data::lab`: angle only, `t,theta` in radians, with
+    /// noise, quantisation and their own stamps) and `lab.json`, their
+    /// truth.
+    #[arg(long)]
+    lab: Option<u64>,
 }
 
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(seed) = a.lab {
+        return lab(seed, &a.out);
+    }
     let train = data::training_set(a.seed, &a.lengths, a.rollouts, &a.effect);
     let test = data::test_set(a.seed, &TEST_LENGTHS, &a.effect);
     let p = data::write(&train, &a.out, "train")?;
@@ -41,5 +51,33 @@ pub fn run(a: Args) -> Result<()> {
         q.display(),
         test.rollouts.len()
     );
+    Ok(())
+}
+
+/// Writes the lab suite of `seed` into `out`.
+fn lab(seed: u64, out: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(out)?;
+    let mut truth = Vec::new();
+    for (k, (spec, rec)) in data::lab::suite(seed).into_iter().enumerate() {
+        let name = format!("lab-{seed}-{k}-{}.csv", spec.case.name().replace('+', "-"));
+        let mut text = String::from("t,theta\n");
+        for (t, v) in rec.t.iter().zip(&rec.theta) {
+            text.push_str(&format!("{t:.6},{v:.6}\n"));
+        }
+        trainer_core::io::write_atomic(&out.join(&name), text.as_bytes())?;
+        truth.push(serde_json::json!({
+            "file": name, "case": spec.case.name(), "length": spec.length,
+            "string": spec.string, "theta0": spec.theta0, "duration": spec.duration,
+            "rate": spec.rate, "stamps": format!("{:?}", spec.stamps), "noise": spec.noise,
+            "quantum": spec.quantum, "offset": spec.offset,
+            "effects": spec.effects.iter().map(|e| (e.name(), e.coefficient)).collect::<Vec<_>>(),
+            "forcing": spec.forcing,
+        }));
+    }
+    trainer_core::io::write_atomic(
+        &out.join("lab.json"),
+        serde_json::to_string_pretty(&truth)?.as_bytes(),
+    )?;
+    println!("wrote {} lab recordings to {}", truth.len(), out.display());
     Ok(())
 }

@@ -75,16 +75,17 @@ pub struct RecordingArgs {
     /// Keep at most S seconds.
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Half-width of the smoothing differentiator's window, s.
-    #[arg(long, default_value_t = 0.01)]
-    pub smooth: f64,
+    /// Half-width of the smoothing differentiator's window, s (default: a
+    /// twentieth of the swing's period).
+    #[arg(long)]
+    pub smooth: Option<f64>,
 }
 
 impl RecordingArgs {
     /// The import options, checked.
     pub fn options(&self) -> Result<trainer_core::data::import::ImportOptions> {
         anyhow::ensure!(
-            self.dt > 0.0 && self.smooth >= 0.0 && self.start >= 0.0,
+            self.dt > 0.0 && self.smooth.is_none_or(|s| s >= 0.0) && self.start >= 0.0,
             "--dt must be positive, --smooth and --start not negative"
         );
         anyhow::ensure!(

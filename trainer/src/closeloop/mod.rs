@@ -1,23 +1,25 @@
-//! `koopman close-loop`: the whole loop on measured data in one command.
+//! `koopman close-loop`: the whole loop on measured data in one command,
+//! scored on data the loop did not see.
 //!
-//! 1. Import the recordings (or read a project CSV).
-//! 2. Fit the declared physics' length to each recording (least squares on
-//!    the step-averaged data) and train the declared KLM around them:
-//!    lengths on a grid of 5 from 0.8x the smallest to 1.25x the largest,
-//!    initial angles covering the recordings' amplitudes, the given `g`
-//!    and `dt`.
-//! 3. Diagnose the recordings with it.
-//! 4. If an effect is found, train again with the most significant dynamic
-//!    one (largest `|t|`, which measures what it explains that the others do
-//!    not; contributions mislead when terms are collinear, like a torque and
-//!    an angle offset) among viscous, coulomb, drag and torque (the sensor
-//!    effects offset and gain change no dynamics) as the second physical
-//!    parameter, its coefficient drawn from `[0, 2c]`.
-//! 5. Score both models on each recording the protocol's way: the filter
-//!    sees the first 64 measurements, the model simulates every step from
-//!    `x_0` with the filter's estimate; error = MSE with each dimension
-//!    scaled by the recording's standard deviation.
-//! 6. Write `report.md`, `report.json` and the figures.
+//! 1. Read the recordings twice: as recorded (their own stamps, for the
+//!    diagnosis) and imported on the model's grid (for the models).
+//! 2. Split each: the first [`FIT_SHARE`] of its time is diagnosed and
+//!    trained on, the rest is held out.
+//! 3. Diagnose each recording's first part from its swings
+//!    (`trainer_core::diagnose::energy`). Sensor effects are corrected in
+//!    the data: the offset found is subtracted from the angle.
+//! 4. Train the declared KLM around the first parts (lengths on a grid of
+//!    5 from 0.8x the smallest physics fit to 1.25x the largest, initial
+//!    angles covering their amplitudes, the given `g` and `dt`).
+//! 5. Add one dynamic effect as the filter's second parameter, its
+//!    coefficient drawn from `[0, 2c]`: the one named in the most
+//!    recordings, ties broken by the larger summed `t` (the filter carries
+//!    one extra parameter; when two are named the report says which was
+//!    added and why). Train again with it.
+//! 6. Score on the held-out parts ([`forecast`]): the declared model
+//!    (before), the model with the effect (after), and the physics at the
+//!    swings' `w` without and with the diagnosed terms.
+//! 7. Write `report.md`, `report.json` and the figure.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,19 +29,22 @@ use estimator::Model;
 use serde::Serialize;
 
 use trainer_core::data::import::ImportOptions;
-use trainer_core::data::{self, states_f32};
-use trainer_core::diagnose::{self, Diagnosis};
+use trainer_core::data::{self, Dataset, Rollout};
+use trainer_core::diagnose::{self, energy::SwingDiagnosis};
 use trainer_core::io::write_atomic;
-use trainer_core::metrics::{scaled_mse, simulate, spread};
-use trainer_core::physics::EffectRange;
-use trainer_core::protocol::WINDOW;
+use trainer_core::physics::{Effect, EffectKind, EffectRange, Pendulum};
 
 mod figure;
+pub mod forecast;
 
 use crate::export;
 use crate::learn::config::{ModelKind, TrainConfig};
 use crate::learn::run::{RunPaths, RunState};
 use crate::learn::train;
+
+/// Share of each recording's time that is diagnosed and trained on; the
+/// rest is held out for the score.
+pub const FIT_SHARE: f64 = 2.0 / 3.0;
 
 /// The loop's settings.
 #[derive(Debug, Clone, Serialize)]
@@ -56,31 +61,43 @@ pub struct CloseLoopOptions {
     pub quiet: bool,
 }
 
-/// One recording's errors before and after.
+/// One recording's diagnosis and held-out errors.
 #[derive(Debug, Clone, Serialize)]
 pub struct RecordingScore {
     /// Rollout id.
     pub rollout: u32,
     /// What it was imported from.
     pub source: String,
-    /// Steps.
-    pub steps: usize,
-    /// The physics' length fitted to it.
+    /// Steps in all, and held out.
+    pub steps: [usize; 2],
+    /// The swing diagnosis of its first part.
+    pub diagnosis: SwingDiagnosis,
+    /// The offset subtracted from its angle, rad.
+    pub offset_corrected: f64,
+    /// The declared physics' length fitted to its first part.
     pub length_physics: f64,
-    /// Declared model: the filter's length.
+    /// Declared model: the filter's length on the first held-out window.
     pub length_before: f32,
-    /// Declared model: trusted?
+    /// Declared model: trusted there?
     pub trusted_before: bool,
-    /// Declared model: simulation error.
+    /// Declared model: held-out forecast error, median over windows.
     pub error_before: f64,
-    /// Model with the effect: the filter's length.
+    /// Its quartiles and windows.
+    pub score_before: forecast::Score,
+    /// Model with the effect: the filter's length on the first window.
     pub length_after: Option<f32>,
-    /// Model with the effect: the filter's coefficient.
+    /// Model with the effect: the filter's coefficient there.
     pub coefficient_after: Option<f32>,
-    /// Model with the effect: trusted?
+    /// Model with the effect: trusted there?
     pub trusted_after: Option<bool>,
-    /// Model with the effect: simulation error.
+    /// Model with the effect: held-out forecast error, median.
     pub error_after: Option<f64>,
+    /// Its quartiles and windows.
+    pub score_after: Option<forecast::Score>,
+    /// The physics at the swings' `w`, without effects.
+    pub physics_before: forecast::Score,
+    /// The physics at the swings' `w` with the diagnosed dynamic terms.
+    pub physics_after: forecast::Score,
 }
 
 /// What the loop found and did.
@@ -88,27 +105,71 @@ pub struct RecordingScore {
 pub struct CloseLoopReport {
     /// Settings.
     pub options: CloseLoopOptions,
+    /// Share of each recording diagnosed and trained on.
+    pub fit_share: f64,
+    /// Seconds forecast after each held-out window.
+    pub horizon_s: f64,
     /// Lengths the models were trained on.
     pub lengths: Vec<f64>,
     /// Their initial angles' range.
     pub theta0: [f64; 2],
-    /// The diagnosis with the declared model.
-    pub diagnosis: Diagnosis,
     /// The effect added, if any.
     pub effect_added: Option<EffectRange>,
+    /// Why that one.
+    pub effect_reason: String,
     /// Per recording.
     pub recordings: Vec<RecordingScore>,
     /// Wall time, s.
     pub seconds: f64,
 }
 
-/// Simulation error of a blob on a recording (module docs, step 5), and the
-/// filter's last output.
-pub fn score(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<(f64, estimator::StepOutput)> {
-    let n = WINDOW.min(xs.len());
-    let out = estimator::filter::run(&mut estimator::Estimator::new(model), &states_f32(&xs[..n]))?;
-    let sim = simulate(model, xs, out.coordinate)?;
-    Ok((scaled_mse(&xs[1..], &sim, spread(xs)), out))
+/// The filter's output on the first held-out window.
+fn first_window(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<estimator::StepOutput> {
+    let n = trainer_core::protocol::WINDOW.min(xs.len());
+    Ok(estimator::filter::run(
+        &mut estimator::Estimator::new(model),
+        &data::states_f32(&xs[..n]),
+    )?)
+}
+
+/// Which dynamic effect to add (module docs, step 5), and why.
+fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<(EffectKind, f64)>, String) {
+    let mut tally: Vec<(EffectKind, usize, f64, f64)> = Vec::new();
+    for d in diags {
+        for e in d.effects.iter().filter(|e| e.name.is_dynamic()) {
+            let t = e.coefficient / e.se.max(1e-300);
+            match tally.iter_mut().find(|x| x.0 == e.name) {
+                Some(x) => {
+                    x.1 += 1;
+                    x.2 += t;
+                    x.3 = x.3.max(e.coefficient);
+                }
+                None => tally.push((e.name, 1, t, e.coefficient)),
+            }
+        }
+    }
+    tally.sort_by(|a, b| b.1.cmp(&a.1).then(b.2.total_cmp(&a.2)));
+    match tally.as_slice() {
+        [] => (None, "no dynamic effect was named".into()),
+        [(k, n, _, c)] => (
+            Some((*k, *c)),
+            format!(
+                "{k} was the only dynamic effect named ({n} of {} recordings)",
+                diags.len()
+            ),
+        ),
+        [(k, n, t, c), rest @ ..] => (
+            Some((*k, *c)),
+            format!(
+                "{k} was named in {n} of {} recordings (summed t {t:.0}); also named: {}; the filter carries one extra parameter, so the most often named (then the larger summed t) was added",
+                diags.len(),
+                rest.iter()
+                    .map(|(k, n, t, _)| format!("{k} ({n}, t {t:.0})"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ),
+    }
 }
 
 fn train_and_export(dir: &Path, cfg: TrainConfig, quiet: bool) -> Result<PathBuf> {
@@ -150,19 +211,64 @@ pub fn close_loop(
             eprintln!("close-loop: {m}");
         }
     };
+    // 1. Both readings.
+    let recs = data::read_recordings(inputs, &opts.import)?;
     let ds = data::read_inputs(inputs, &opts.import)?;
     let dt = ds.sidecar.dt;
-    data::write(&ds, out, "measured")?;
-    let sources: Vec<String> = if ds.rollouts.len() == inputs.len() {
-        inputs.iter().map(|p| p.display().to_string()).collect()
-    } else {
-        ds.rollouts
+    anyhow::ensure!(
+        recs.len() == ds.rollouts.len(),
+        "{} recordings read but {} imported",
+        recs.len(),
+        ds.rollouts.len()
+    );
+    // 2.-3. Split, diagnose the first part, correct the offset.
+    let mut fit_parts = Vec::new();
+    let mut held = Vec::new();
+    let mut diags = Vec::new();
+    let mut offsets = Vec::new();
+    for ((source, rec), r) in recs.iter().zip(&ds.rollouts) {
+        let n = data::unbroken(&r.t, dt);
+        anyhow::ensure!(
+            n == r.t.len(),
+            "{source}: a gap in the time stamps; close the loop on the parts either side of it (--start, --duration)"
+        );
+        let cut = (FIT_SHARE * n as f64).round() as usize;
+        let t_cut = rec.t[0] + opts.import.start + cut as f64 * dt;
+        let k = rec.t.partition_point(|&x| x < t_cut);
+        let d = diagnose::diagnose_recording(&rec.t[..k], &rec.theta[..k])
+            .with_context(|| format!("{source}: the first {:.0}% of it", 100.0 * FIT_SHARE))?;
+        let offset = d
+            .effects
             .iter()
-            .map(|r| format!("{} rollout {}", inputs[0].display(), r.id))
-            .collect()
+            .find(|e| e.name == EffectKind::Offset)
+            .map_or(0.0, |e| e.coefficient);
+        let fix = |xs: &[[f64; 2]]| -> Vec<[f64; 2]> {
+            xs.iter().map(|x| [x[0] - offset, x[1]]).collect()
+        };
+        fit_parts.push(Rollout {
+            id: r.id,
+            t: r.t[..cut].to_vec(),
+            xs: fix(&r.xs[..cut]),
+        });
+        held.push(Rollout {
+            id: r.id,
+            t: r.t[cut..].iter().map(|t| t - r.t[cut]).collect(),
+            xs: fix(&r.xs[cut..]),
+        });
+        say(&format!(
+            "{source}: {} ({} turning points)",
+            d.verdict, d.turns
+        ));
+        diags.push(d);
+        offsets.push(offset);
+    }
+    let fit_ds = Dataset {
+        rollouts: fit_parts,
+        sidecar: ds.sidecar.clone(),
     };
-    // 2. The declared model around the recordings.
-    let lp: Vec<f64> = ds
+    data::write(&fit_ds, out, "fit")?;
+    // 4. The declared model around the first parts.
+    let lp: Vec<f64> = fit_ds
         .rollouts
         .iter()
         .map(|r| {
@@ -173,7 +279,7 @@ pub fn close_loop(
     let lo = 0.8 * lp.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = 1.25 * lp.iter().copied().fold(0.0, f64::max);
     let lengths: Vec<f64> = (0..5).map(|k| lo + (hi - lo) * k as f64 / 4.0).collect();
-    let amp: Vec<f64> = ds
+    let amp: Vec<f64> = fit_ds
         .rollouts
         .iter()
         .map(|r| r.xs.iter().map(|x| x[0].abs()).fold(0.0, f64::max))
@@ -198,29 +304,18 @@ pub fn close_loop(
     let bytes = std::fs::read(&declared)?;
     let before =
         Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", declared.display()))?;
-    // 3. Diagnose.
-    say("diagnosing");
-    let diagnosis = diagnose::diagnose(&before, &ds, opts.g)?;
-    diagnose::write(&out.join("diagnosis"), &diagnosis)?;
-    // 4. Add the strongest dynamic effect.
-    let dynamic = diagnosis
-        .effects
-        .iter()
-        .filter(|e| e.name.is_dynamic())
-        .max_by(|a, b| a.t.abs().total_cmp(&b.t.abs()));
-    let effect_added = match (diagnosis.verdict.as_str(), dynamic) {
-        ("none", _) | (_, None) => None,
-        (_, Some(e)) => {
-            let c2 = 2.0 * e.coefficient;
-            Some(EffectRange {
-                name: e.name,
-                range: [c2.min(0.0), c2.max(0.0)],
-            })
-        }
-    };
+    // 5. The effect.
+    let (chosen, effect_reason) = choose_effect(&diags);
+    let effect_added = chosen.map(|(name, c)| EffectRange {
+        name,
+        range: [(2.0 * c).min(0.0), (2.0 * c).max(0.0)],
+    });
     let after_blob = match &effect_added {
         Some(e) => {
-            say(&format!("training with {} in {:?}", e.name, e.range));
+            say(&format!(
+                "training with {} in {:?} ({effect_reason})",
+                e.name, e.range
+            ));
             let mut c = cfg.clone();
             c.effect = Some(e.clone());
             Some(train_and_export(&out.join("with-effect"), c, opts.quiet)?)
@@ -233,31 +328,69 @@ pub fn close_loop(
         .map(Model::from_bytes)
         .transpose()
         .map_err(|e| anyhow::anyhow!("with-effect blob: {e}"))?;
-    // 5. Before and after.
+    // 6. Held out: before, after, and the physics.
     let mut recordings = Vec::new();
-    for ((r, src), l) in ds.rollouts.iter().zip(&sources).zip(&lp) {
-        let (eb, ob) = score(&before, &r.xs)?;
-        let a = after.as_ref().map(|m| score(m, &r.xs)).transpose()?;
+    for (((r, (source, _)), d), (offset, l)) in held
+        .iter()
+        .zip(&recs)
+        .zip(&diags)
+        .zip(offsets.iter().zip(&lp))
+    {
+        let ctx = |e: anyhow::Error| e.context(format!("{source}: the held-out part"));
+        let score_before = forecast::klm(&before, &r.xs, dt).map_err(ctx)?;
+        let ob = first_window(&before, &r.xs)?;
+        let a = match &after {
+            Some(m) => Some((
+                forecast::klm(m, &r.xs, dt).map_err(ctx)?,
+                first_window(m, &r.xs)?,
+            )),
+            None => None,
+        };
+        // The physics at the swings' w (a rod: w^2 = 3 g / 2 L).
+        let mut p = Pendulum::new(3.0 * opts.g / (2.0 * d.w * d.w));
+        p.g = opts.g;
+        let physics_before = forecast::physics(&p, &r.xs, dt).map_err(ctx)?;
+        p.effects = d
+            .effects
+            .iter()
+            .filter(|e| e.name.is_dynamic())
+            .map(|e| Effect::new(e.name, e.coefficient))
+            .collect();
+        let physics_after = forecast::physics(&p, &r.xs, dt).map_err(ctx)?;
         recordings.push(RecordingScore {
             rollout: r.id,
-            source: src.clone(),
-            steps: r.xs.len(),
+            source: source.clone(),
+            steps: [
+                ds.rollouts
+                    .iter()
+                    .find(|x| x.id == r.id)
+                    .map_or(0, |x| x.xs.len()),
+                r.xs.len(),
+            ],
+            diagnosis: d.clone(),
+            offset_corrected: *offset,
             length_physics: *l,
             length_before: ob.params[0],
             trusted_before: ob.trust.is_trusted(),
-            error_before: eb,
+            error_before: score_before.median,
+            score_before,
             length_after: a.as_ref().map(|(_, o)| o.params[0]),
             coefficient_after: a.as_ref().map(|(_, o)| o.params[1]),
             trusted_after: a.as_ref().map(|(_, o)| o.trust.is_trusted()),
-            error_after: a.as_ref().map(|(e, _)| *e),
+            error_after: a.as_ref().map(|(s, _)| s.median),
+            score_after: a.as_ref().map(|(s, _)| *s),
+            physics_before,
+            physics_after,
         });
     }
     let report = CloseLoopReport {
         options: opts.clone(),
+        fit_share: FIT_SHARE,
+        horizon_s: forecast::HORIZON_S,
         lengths,
         theta0,
-        diagnosis,
         effect_added,
+        effect_reason,
         recordings,
         seconds: start.elapsed().as_secs_f64(),
     };
@@ -266,9 +399,26 @@ pub fn close_loop(
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
     write_atomic(&out.join("report.md"), markdown(&report).as_bytes())?;
+    // The figure: the first held-out window's forecast.
+    let horizon = (forecast::HORIZON_S / dt).round() as usize;
+    let shown = Dataset {
+        rollouts: held
+            .iter()
+            .map(|r| {
+                let from = (trainer_core::protocol::WINDOW - 1).min(r.xs.len() - 1);
+                let to = (from + horizon + 1).min(r.xs.len());
+                Rollout {
+                    id: r.id,
+                    t: r.t[from..to].to_vec(),
+                    xs: r.xs[from..to].to_vec(),
+                }
+            })
+            .collect(),
+        sidecar: ds.sidecar.clone(),
+    };
     figure::close_loop(
         &out.join("before_after.png"),
-        &ds,
+        &shown,
         &before,
         after.as_ref(),
         &report,
@@ -278,10 +428,10 @@ pub fn close_loop(
 
 /// The report as markdown.
 pub fn markdown(r: &CloseLoopReport) -> String {
-    let d = &r.diagnosis;
     let mut s = String::from("# Close the loop\n\n");
     s.push_str(&format!(
-        "Declared model trained on lengths {} m (g = {}, dt = {} s, theta_0 {:.2}..{:.2} rad, {} iterations, seed {}).\n\n",
+        "Each recording's first {:.0}% is diagnosed and trained on; the rest is held out. Declared model trained on lengths {} m (g = {}, dt = {} s, theta_0 {:.2}..{:.2} rad, {} iterations, seed {}).\n\n",
+        100.0 * r.fit_share,
         r.lengths.iter().map(|l| format!("{l:.4}")).collect::<Vec<_>>().join(", "),
         r.options.g,
         r.options.import.dt,
@@ -290,44 +440,58 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         r.options.iterations,
         r.options.seed
     ));
-    s.push_str(&format!(
-        "## Diagnosis: {}\n\nAcceleration RMS {:.3} rad/s^2; residual RMS {:.3} with the length correction alone, {:.3} with the selected effects; lag-1 autocorrelation of the final residual {:.2}.\n\n",
-        d.verdict, d.acceleration_rms, d.residual_rms_before, d.residual_rms_after, d.rho
-    ));
-    s.push_str("| effect | coefficient | 95% CI | t | contribution RMS (rad/s^2) |\n| --- | --- | --- | --- | --- |\n");
-    for e in &d.effects {
+    s.push_str("## Diagnosis (swings of the first part)\n\n| recording | verdict | turning points | amplitude (rad) | effects (95% CI) |\n| --- | --- | --- | --- | --- |\n");
+    for x in &r.recordings {
+        let d = &x.diagnosis;
         s.push_str(&format!(
-            "| {} | {:.5} | {:.5} .. {:.5} | {:.1} | {:.3} |\n",
-            e.name, e.coefficient, e.ci[0], e.ci[1], e.t, e.contribution_rms
+            "| {} | {} | {} | {:.3} -> {:.3} | {} |\n",
+            x.source,
+            d.verdict,
+            d.turns,
+            d.amplitude[0],
+            d.amplitude[1],
+            d.effects
+                .iter()
+                .map(|e| format!(
+                    "{} {:.4} {} ({:.4}..{:.4})",
+                    e.name,
+                    e.coefficient,
+                    e.name.unit(),
+                    e.ci[0],
+                    e.ci[1]
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
         ));
     }
-    s.push_str(&format!("\nCriterion: {}.\n\n", d.criterion));
+    if let Some(d) = r.recordings.first() {
+        s.push_str(&format!("\nCriterion: {}.\n\n", d.diagnosis.criterion));
+    }
     match &r.effect_added {
         Some(e) => s.push_str(&format!(
-            "## Effect added\n\n`{}` as the second physical parameter, trained over [{}, {}].\n\n",
-            e.name, e.range[0], e.range[1]
+            "## Effect added\n\n`{}` as the second physical parameter, trained over [{}, {}]: {}. Sensor offsets were subtracted from the angle.\n\n",
+            e.name, e.range[0], e.range[1], r.effect_reason
         )),
-        None => s.push_str("## Effect added\n\nNone (no dynamic effect was selected).\n\n"),
+        None => s.push_str(&format!("## Effect added\n\nNone: {}.\n\n", r.effect_reason)),
     }
-    s.push_str("## Simulation error before and after\n\nThe filter sees the first 64 measurements; the model simulates every step from x_0 with its estimate; MSE with each dimension scaled by the recording's standard deviation.\n\n");
-    s.push_str("| recording | steps | L (physics fit) | L before | error before | L after | coefficient after | error after |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
-    let opt = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |x| format!("{x:.p$}"));
+    s.push_str(&format!(
+        "## Held-out forecast error\n\nWindows every {} steps of the held-out part: the filter sees 64 measurements, then the model forecasts {} s from the last; MSE of the angle over the held-out angle's variance; median (first..third quartile) over the windows. Physics: the rod at the swings' w, without and with the diagnosed dynamic terms, from the same measured states.\n\n",
+        forecast::STRIDE, r.horizon_s
+    ));
+    s.push_str("| recording | held out | windows | before (declared KLM) | after (KLM with the effect) | after / before | physics without | physics with the terms |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    let sc = |x: &forecast::Score| format!("{:.4} ({:.4}..{:.4})", x.median, x.q25, x.q75);
     for x in &r.recordings {
         s.push_str(&format!(
-            "| {} | {} | {:.4} | {:.4}{} | {:.4} | {}{} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
             x.source,
-            x.steps,
-            x.length_physics,
-            x.length_before,
-            if x.trusted_before { "" } else { " (untrusted)" },
-            x.error_before,
-            opt(x.length_after.map(f64::from), 4),
-            match x.trusted_after {
-                Some(false) => " (untrusted)",
-                _ => "",
-            },
-            opt(x.coefficient_after.map(f64::from), 4),
-            opt(x.error_after, 4)
+            x.steps[1],
+            x.score_before.windows,
+            sc(&x.score_before),
+            x.score_after.as_ref().map_or("-".into(), sc),
+            x.error_after
+                .map_or("-".into(), |a| format!("{:.2}", a / x.error_before)),
+            sc(&x.physics_before),
+            sc(&x.physics_after),
         ));
     }
     s.push_str(&format!("\nWall time {:.0} s.\n", r.seconds));

@@ -14,7 +14,8 @@
 //! by a smoothing differentiator: the least-squares slope over a centred
 //! window of `2m + 1` samples, `theta_dot_i = sum_k k theta_{i+k} / (h sum_k k^2)`
 //! (Savitzky-Golay, first derivative, linear or quadratic fit), the window
-//! shrinking at the ends. The angle is smoothed by the same window's mean.
+//! shrinking at the ends, a twentieth of the swing's period wide on each
+//! side unless given. The angle is smoothed by the same window's quadratic.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
 //! an optional trim. Uneven time stamps are differentiated at their times
 //! ([`differentiate_uneven`]). A gap in the time stamps (more than 5 median
@@ -54,8 +55,10 @@ pub struct ImportOptions {
     pub start: f64,
     /// Keep at most this many seconds after `start`.
     pub duration: Option<f64>,
-    /// Half-width of the differentiator's window, seconds.
-    pub smooth: f64,
+    /// Half-width of the differentiator's window, seconds; `None`: a
+    /// twentieth of the swing's period ([`rough_period`]), which damps the
+    /// rate of the swing by about 1% and the noise as much as that allows.
+    pub smooth: Option<f64>,
     /// Which columns of a plain CSV hold what.
     pub columns: Columns,
 }
@@ -68,7 +71,7 @@ impl Default for ImportOptions {
             dt: DT,
             start: 0.0,
             duration: None,
-            smooth: 0.01,
+            smooth: None,
             columns: Columns::default(),
         }
     }
@@ -256,7 +259,25 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
     for i in 0..n {
         let w = m.min(i).min(n - 1 - i);
         let window = &theta[i - w..=i + w];
-        smooth.push(window.iter().sum::<f64>() / window.len() as f64);
+        // The angle: the window's least-squares quadratic at its centre
+        // (Savitzky-Golay), exact on a parabola; a window's mean would
+        // shave the swing's peaks.
+        let (mut s0, mut s2) = (0.0, 0.0);
+        for (k, v) in window.iter().enumerate() {
+            let k = k as f64 - w as f64;
+            s0 += v;
+            s2 += k * k * v;
+        }
+        let nn = (2 * w + 1) as f64;
+        let (k2, k4): (f64, f64) = (-(w as i64)..=w as i64)
+            .map(|k| ((k * k) as f64, (k * k * k * k) as f64))
+            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        let den = nn * k4 - k2 * k2;
+        smooth.push(if den > 0.0 {
+            (k4 * s0 - k2 * s2) / den
+        } else {
+            s0 / nn
+        });
         if w == 0 {
             // The two end samples: a one-sided difference.
             let d = if i == 0 {
@@ -353,6 +374,41 @@ fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
     Ok(())
 }
 
+/// The swing's period, roughly: twice the median time between the first
+/// crossings of the median angle through a band of 30% of the largest
+/// excursion (so noise does not cross it). `None` with fewer than three
+/// crossings.
+pub fn rough_period(t: &[f64], theta: &[f64]) -> Option<f64> {
+    let mut sorted = theta.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let centre = *sorted.get(sorted.len() / 2)?;
+    let band = 0.3 * theta.iter().map(|v| (v - centre).abs()).fold(0.0, f64::max);
+    let mut flips = Vec::new();
+    let mut side = 0i8;
+    for (&ti, &v) in t.iter().zip(theta) {
+        let s = if v - centre > band {
+            1
+        } else if v - centre < -band {
+            -1
+        } else {
+            0
+        };
+        if s != 0 && s != side {
+            if side != 0 {
+                flips.push(ti);
+            }
+            side = s;
+        }
+    }
+    // From the first swings (the largest, before friction stops them).
+    let mut halves: Vec<f64> = flips.windows(2).take(8).map(|w| w[1] - w[0]).collect();
+    if halves.len() < 2 {
+        return None;
+    }
+    halves.sort_by(f64::total_cmp);
+    Some(2.0 * halves[halves.len() / 2])
+}
+
 /// The checks every recording passes before use: at least 3 samples, and
 /// angles that span a plausible swing in `unit` (see `check_span`).
 pub fn check_recording(rec: &Recording, unit: Unit) -> Result<()> {
@@ -409,13 +465,18 @@ pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Roll
     let mut pieces: Vec<(&[f64], Vec<f64>, Vec<f64>)> = Vec::new();
     for r in parts {
         let (t, theta) = (&rec.t[r.clone()], &rec.theta[r.clone()]);
+        // Each part's own swing sets its window (a gap is no half period).
+        let smooth = opts
+            .smooth
+            .or_else(|| rough_period(t, theta).map(|p| p / 20.0))
+            .unwrap_or(0.01);
         let (smooth, rate) = match &rec.theta_dot {
             Some(rate) => (theta.to_vec(), rate[r].to_vec()),
             None if uniform(t) => {
                 let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-                differentiate(theta, h, (opts.smooth / h).round().max(1.0) as usize)
+                differentiate(theta, h, (smooth / h).round().max(1.0) as usize)
             }
-            None => differentiate_uneven(t, theta, (opts.smooth / step).round().max(1.0) as usize),
+            None => differentiate_uneven(t, theta, (smooth / step).round().max(1.0) as usize),
         };
         pieces.push((t, smooth, rate));
     }

@@ -125,30 +125,6 @@ fn eval(beta: &[f64; BASIS], f: [f64; BASIS]) -> f64 {
     beta.iter().zip(f).map(|(b, v)| b * v).sum()
 }
 
-/// Rough half periods from the crossings of the centre line through a
-/// band of `+-band`: the times at which the angle leaves the band on the
-/// other side from where it last was.
-fn flips(t: &[f64], m: &[f64], centre: f64, band: f64) -> Vec<f64> {
-    let mut out = Vec::new();
-    let mut side = 0i8;
-    for (&ti, &v) in t.iter().zip(m) {
-        let s = if v - centre > band {
-            1
-        } else if v - centre < -band {
-            -1
-        } else {
-            0
-        };
-        if s != 0 && s != side {
-            if side != 0 {
-                out.push(ti);
-            }
-            side = s;
-        }
-    }
-    out
-}
-
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
@@ -170,17 +146,10 @@ pub fn swings(t: &[f64], m: &[f64]) -> Result<Swings> {
         .map(|w| (w[1] - w[0]).abs())
         .filter(|d| *d > 0.0)
         .fold(f64::INFINITY, f64::min);
-    let mut dev: Vec<f64> = m.iter().map(|v| (v - centre0).abs()).collect();
-    dev.sort_by(f64::total_cmp);
-    let big = dev[dev.len() - 1];
-    let fl = flips(t, m, centre0, 0.3 * big);
-    if fl.len() < 3 {
+    let Some(period) = crate::data::import::rough_period(t, m) else {
         bail!("fewer than two swings through the centre: nothing to measure a period on");
-    }
-    // From the first swings (the largest, before any friction stops them).
-    let mut halves: Vec<f64> = fl.windows(2).take(8).map(|w| w[1] - w[0]).collect();
-    let mut half = median(&mut halves);
-    let period = 2.0 * half;
+    };
+    let mut half = 0.5 * period;
     // The first turning point whose window fits in the recording: the
     // largest deviation in the half period after the first half period.
     let first_seed = {
