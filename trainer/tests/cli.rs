@@ -239,9 +239,9 @@ fn estimate_refuses_another_interval_and_bridges_a_gap() {
     assert!(v["params"][0].as_f64().unwrap().is_finite(), "{v}");
 }
 
-/// Recordings a user might bring, each through `koopman diagnose` (which
-/// imports them): every one ends in a result or a clear error (exit 1
-/// with the file named), never a panic (exit 101).
+/// Recordings a user might bring, each through `koopman diagnose` and
+/// `koopman close-loop` (which import them): every one ends in a result or
+/// a clear error (exit 1 with the file named), never a panic (exit 101).
 #[test]
 fn diagnose_never_panics_on_odd_recordings() {
     let dir = tempfile::tempdir().unwrap();
@@ -297,22 +297,31 @@ fn diagnose_never_panics_on_odd_recordings() {
     for (name, text, word) in cases {
         let f = dir.path().join(name);
         std::fs::write(&f, text).unwrap();
-        let out = koopman()
-            .args(["diagnose", "--weights"])
-            .arg(shipped_weights())
-            .arg(&f)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        let code = out.status.code();
-        assert!(
-            code == Some(0) || code == Some(1),
-            "{name}: exit {code:?}\n{err}"
-        );
-        assert!(!err.contains("panicked"), "{name}: {err}");
-        if !word.is_empty() {
-            assert_eq!(code, Some(1), "{name} was accepted");
-            assert!(err.contains(name) && err.contains(word), "{name}: {err}");
+        // The same files through `close-loop` (which fails early on each,
+        // before training, or trains 5 iterations).
+        for cmd in ["diagnose", "close-loop"] {
+            let mut c = koopman();
+            if cmd == "diagnose" {
+                c.args(["diagnose", "--weights"]).arg(shipped_weights());
+            } else {
+                c.args(["close-loop", "--quiet", "--iterations", "5", "--out"])
+                    .arg(dir.path().join(format!("loop-{name}")));
+            }
+            let out = c.arg(&f).output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            let code = out.status.code();
+            assert!(
+                code == Some(0) || code == Some(1),
+                "{cmd} {name}: exit {code:?}\n{err}"
+            );
+            assert!(!err.contains("panicked"), "{cmd} {name}: {err}");
+            if !word.is_empty() {
+                assert_eq!(code, Some(1), "{cmd}: {name} was accepted");
+                assert!(
+                    err.contains(name) && err.contains(word),
+                    "{cmd} {name}: {err}"
+                );
+            }
         }
     }
 }

@@ -22,6 +22,11 @@ use trainer_core::protocol::WINDOW;
 pub const HORIZON_S: f64 = 5.0;
 /// Steps between window starts.
 pub const STRIDE: usize = 8;
+/// Windows a held-out part gives at least: on a short recording the
+/// horizon shrinks (to no fewer than [`MIN_HORIZON`] steps) to leave them.
+pub const MIN_WINDOWS: usize = 5;
+/// Shortest horizon, steps.
+pub const MIN_HORIZON: usize = 20;
 
 /// Median and quartiles of the windows' errors.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -65,10 +70,11 @@ fn summarise(mut v: Vec<f64>) -> Score {
 
 /// The windows of `xs` (held-out, unbroken, at `dt`): `(start, horizon)`.
 pub fn windows(len: usize, dt: f64) -> Result<(Vec<usize>, usize)> {
-    let horizon = (HORIZON_S / dt).round() as usize;
+    let room = len.saturating_sub(WINDOW + STRIDE * (MIN_WINDOWS - 1));
+    let horizon = ((HORIZON_S / dt).round() as usize).min(room);
     anyhow::ensure!(
-        len >= WINDOW + horizon,
-        "the held-out part has {len} samples, fewer than the filter's {WINDOW} and a forecast of {HORIZON_S} s ({horizon}): record longer"
+        horizon >= MIN_HORIZON,
+        "the held-out part has {len} samples, too few for {MIN_WINDOWS} windows of the filter's {WINDOW} and a forecast of {MIN_HORIZON} steps: record longer"
     );
     Ok((
         (0..=len - WINDOW - horizon).step_by(STRIDE).collect(),

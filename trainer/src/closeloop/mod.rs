@@ -107,7 +107,8 @@ pub struct CloseLoopReport {
     pub options: CloseLoopOptions,
     /// Share of each recording diagnosed and trained on.
     pub fit_share: f64,
-    /// Seconds forecast after each held-out window.
+    /// Seconds forecast after each held-out window (at most; a short
+    /// held-out part gets a shorter horizon, see [`forecast::windows`]).
     pub horizon_s: f64,
     /// Lengths the models were trained on.
     pub lengths: Vec<f64>,
@@ -475,7 +476,7 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         None => s.push_str(&format!("## Effect added\n\nNone: {}.\n\n", r.effect_reason)),
     }
     s.push_str(&format!(
-        "## Held-out forecast error\n\nWindows every {} steps of the held-out part: the filter sees 64 measurements, then the model forecasts {} s from the last; MSE of the angle over the held-out angle's variance; median (first..third quartile) over the windows. Physics: the rod at the swings' w, without and with the diagnosed dynamic terms, from the same measured states.\n\n",
+        "## Held-out forecast error\n\nWindows every {} steps of the held-out part: the filter sees 64 measurements, then the model forecasts {} s from the last (less where the held-out part is short: at least 5 windows, at least 20 steps); MSE of the angle over the held-out angle's variance; median (first..third quartile) over the windows. Physics: the rod at the swings' w, without and with the diagnosed dynamic terms, from the same measured states.\n\n",
         forecast::STRIDE, r.horizon_s
     ));
     s.push_str("| recording | held out | windows | before (declared KLM) | after (KLM with the effect) | after / before | physics without | physics with the terms |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
