@@ -55,6 +55,31 @@ pub fn simulate(
         .collect())
 }
 
+/// The median of `v` (the upper one for an even count; NaN when empty);
+/// sorts `v`.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Lag-1 autocorrelation of a residual series, `sum r_i r_{i+1} / sum
+/// r_i^2` (0 for an all-zero series). Where neighbouring residuals move
+/// together, `n` of them carry about `(1 - rho) / (1 + rho)` of the
+/// information of `n` independent ones: the fits inflate their variances
+/// by [`correlation_inflation`].
+pub fn lag1_autocorrelation(r: &[f64]) -> f64 {
+    let den: f64 = r.iter().map(|v| v * v).sum();
+    let num: f64 = r.windows(2).map(|w| w[0] * w[1]).sum();
+    if den > 0.0 { num / den } else { 0.0 }
+}
+
+/// `(1 + rho) / (1 - rho)` for a positive lag-1 correlation `rho` capped
+/// at `cap` (1 for a negative one).
+pub fn correlation_inflation(rho: f64, cap: f64) -> f64 {
+    let rho = rho.clamp(0.0, cap);
+    (1.0 + rho) / (1.0 - rho)
+}
+
 /// The protocol's MSE: [`simulate`] against `xs[1..]` in the model's
 /// normalised units.
 pub fn simulation_mse(
@@ -84,6 +109,13 @@ mod tests {
         assert_eq!(scaled_mse(&truth, &sim, [1.0, 2.0]), 2.75);
         assert_eq!(rms([3.0, 4.0].into_iter()), (12.5f64).sqrt());
         assert_eq!(rms(std::iter::empty()), 0.0);
+        // (1*2 + 2*3) / (1 + 4 + 9) = 8/14; inflation (1 + 0.5)/(1 - 0.5).
+        assert_eq!(lag1_autocorrelation(&[1.0, 2.0, 3.0]), 8.0 / 14.0);
+        assert_eq!(lag1_autocorrelation(&[0.0, 0.0]), 0.0);
+        assert_eq!(correlation_inflation(0.5, 0.9), 3.0);
+        assert_eq!(correlation_inflation(-0.5, 0.9), 1.0);
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert!(median(&mut []).is_nan());
         // Spread of (0, 0), (2, 4): means (1, 2), deviations (1, 2).
         assert_eq!(spread(&[[0.0, 0.0], [2.0, 4.0]]), [1.0, 2.0]);
         // Answering the mean scores 1 with the data's own spread.

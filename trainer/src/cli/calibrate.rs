@@ -11,7 +11,7 @@ use estimator::blob::{
 };
 use estimator::{PARAM_DIM, STATE_DIM};
 use serde::Deserialize;
-use trainer_core::calibrate::{CalibrateConfig, blob_bytes, calibrate, map_bytes, permissive};
+use trainer_core::calibrate::{CalibrateConfig, blob_bytes, map_bytes, permissive};
 use trainer_core::io::write_atomic;
 
 /// Calibrates the trust verdict of a weights blob on held-out rollouts
@@ -105,12 +105,7 @@ pub fn run(a: Args) -> Result<()> {
         seed: a.seed,
         ..CalibrateConfig::default()
     };
-    let bar = indicatif::ProgressBar::new(0).with_message("calibrating");
-    let (out_bytes, report) = calibrate(&bytes, &cfg, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
-    bar.finish_and_clear();
+    let (out_bytes, report) = trainer::export::calibrate_with_progress(&bytes, &cfg)?;
     let out = a.out.unwrap_or(a.blob.clone());
     write_atomic(&out, &out_bytes)?;
     let sidecar = a.blob.with_extension("json");

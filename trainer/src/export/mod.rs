@@ -187,12 +187,7 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
     let max = *sigmas.last().context("no training rollouts")?;
     filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
     let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params, open))?;
-    let bar = indicatif::ProgressBar::new(0).with_message("calibrating the trust verdict");
-    let (bytes, trust) = calibrate(&bytes, &calib_cfg, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
-    bar.finish_and_clear();
+    let (bytes, trust) = calibrate_with_progress(&bytes, &calib_cfg)?;
     Model::from_bytes(&bytes)
         .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
     write_atomic(out, &bytes)?;
@@ -224,4 +219,19 @@ pub fn config_of(blob: &Path) -> TrainConfig {
         .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
         .and_then(|v| serde_json::from_value::<TrainConfig>(v.get("config")?.clone()).ok())
         .unwrap_or_default()
+}
+
+/// [`calibrate`] with a progress bar: the blob's trust verdict set on
+/// held-out rollouts, as `koopman export` and `koopman calibrate` run it.
+pub fn calibrate_with_progress(
+    bytes: &[u8],
+    cfg: &CalibrateConfig,
+) -> Result<(Vec<u8>, Calibration)> {
+    let bar = indicatif::ProgressBar::new(0).with_message("calibrating the trust verdict");
+    let out = calibrate(bytes, cfg, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    Ok(out)
 }

@@ -47,6 +47,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::swings::{Swings, Turn};
+use crate::metrics::{correlation_inflation, lag1_autocorrelation, median};
 use crate::physics::EffectKind;
 
 /// `|t|` a kept term must reach.
@@ -136,8 +137,7 @@ pub fn free_w(turns: &[Turn]) -> f64 {
             2.0 * ellip_k((0.5 * a).sin()) / (p[1].t - p[0].t)
         })
         .collect();
-    ws.sort_by(f64::total_cmp);
-    ws.get(ws.len() / 2).copied().unwrap_or(f64::NAN)
+    median(&mut ws)
 }
 
 /// The library: per half swing `k -> k + 1`, each candidate's energy loss
@@ -204,19 +204,7 @@ pub fn fit(turns: &[Turn], w: f64, kinds: &[EffectKind]) -> Option<EnergyFit> {
     let r = &y - &x * &b;
     let rss = r.norm_squared();
     let s2 = rss / (n - p) as f64;
-    let (mut num, mut den) = (0.0, 0.0);
-    for i in 0..n {
-        den += r[i] * r[i];
-        if i + 1 < n {
-            num += r[i] * r[i + 1];
-        }
-    }
-    let rho = if den > 0.0 {
-        (num / den).clamp(0.0, 0.9)
-    } else {
-        0.0
-    };
-    let inflate = (1.0 + rho) / (1.0 - rho);
+    let inflate = correlation_inflation(lag1_autocorrelation(r.as_slice()), 0.9);
     Some(EnergyFit {
         kinds: kinds.to_vec(),
         beta: (1..p).map(|j| b[j]).collect(),
@@ -314,11 +302,7 @@ pub fn diagnose_swings(sw: &Swings) -> anyhow::Result<SwingDiagnosis> {
         });
     }
     // The scatter beyond the noise, in rad: sqrt(ratio - 1) typical sds.
-    let typical = |f: &dyn Fn(&Turn) -> f64| {
-        let mut v: Vec<f64> = turns.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(0.0)
-    };
+    let typical = |f: &dyn Fn(&Turn) -> f64| median(&mut turns.iter().map(f).collect::<Vec<_>>());
     let excess = |ratio: f64, sd: f64| (ratio - 1.0).max(0.0).sqrt() * sd;
     let energy_excess = excess(energy_scatter, typical(&|t: &Turn| t.amplitude_sd));
     let centre_excess = excess(centre_scatter, typical(&|t: &Turn| t.centre_sd));

@@ -51,11 +51,7 @@ pub fn ols(x: &DMatrix<f64>, y: &DVector<f64>, rows: &Rows) -> Result<Fit> {
     } else {
         0.0
     };
-    let inflate = if rho > 0.0 {
-        (1.0 + rho) / (1.0 - rho)
-    } else {
-        1.0
-    };
+    let inflate = crate::metrics::correlation_inflation(rho, 0.99);
     let beta = DVector::from_iterator(k, (0..k).map(|j| b_s[j] / scale[j]));
     let se = DVector::from_iterator(
         k,

@@ -20,6 +20,8 @@
 use anyhow::{Result, bail};
 use nalgebra::{DMatrix, DVector};
 
+use crate::metrics::{correlation_inflation, lag1_autocorrelation, median};
+
 /// Basis functions of the window fit.
 const BASIS: usize = 7;
 
@@ -101,19 +103,8 @@ fn fit_window(t: &[f64], m: &[f64], centre: f64, w: f64) -> Option<WindowFit> {
     // lag) carry less information than as many independent ones: the
     // noise level is inflated by (1 + rho) / (1 - rho), rho their lag-1
     // correlation.
-    let (mut num, mut den) = (0.0, 0.0);
-    for i in 0..n {
-        den += resid[i] * resid[i];
-        if i + 1 < n {
-            num += resid[i] * resid[i + 1];
-        }
-    }
-    let rho = if den > 0.0 {
-        (num / den).clamp(0.0, 0.95)
-    } else {
-        0.0
-    };
-    let rms = (resid.norm_squared() / (n - BASIS) as f64 * (1.0 + rho) / (1.0 - rho)).sqrt();
+    let inflate = correlation_inflation(lag1_autocorrelation(resid.as_slice()), 0.95);
+    let rms = (resid.norm_squared() / (n - BASIS) as f64 * inflate).sqrt();
     let mut beta = [0.0; BASIS];
     for (j, v) in beta.iter_mut().enumerate() {
         *v = b[j];
@@ -123,11 +114,6 @@ fn fit_window(t: &[f64], m: &[f64], centre: f64, w: f64) -> Option<WindowFit> {
 
 fn eval(beta: &[f64; BASIS], f: [f64; BASIS]) -> f64 {
     beta.iter().zip(f).map(|(b, v)| b * v).sum()
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// Finds the turning points of the angle `m` at times `t` (increasing).
