@@ -9,7 +9,7 @@
 //!    (`trainer_core::diagnose::energy`). Sensor effects are corrected in
 //!    the data: the offset found is subtracted from the angle.
 //! 4. Train the declared KLM around the first parts (lengths on a grid of
-//!    5 from 0.8x the smallest physics fit to 1.25x the largest, initial
+//!    5 within [`LENGTH_MARGIN`] of the rods the swings' frequencies give, initial
 //!    angles covering their amplitudes, the given `g` and `dt`).
 //! 5. Add one dynamic effect as the filter's second parameter, its
 //!    coefficient drawn from `[0, 2c]`: the one named in the most
@@ -26,6 +26,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use estimator::Model;
+use indicatif::{MultiProgress, ProgressBar};
 use serde::Serialize;
 
 use trainer_core::data::import::ImportOptions;
@@ -45,6 +46,19 @@ use crate::learn::train;
 /// Share of each recording's time that is diagnosed and trained on; the
 /// rest is held out for the score.
 pub const FIT_SHARE: f64 = 2.0 / 3.0;
+
+/// Half-width of the declared models' length range around the lengths
+/// the swings give, as a share: the swings' frequency fixes a length to
+/// well under 1% (`docs/diagnosis.md`), and a learned linear model is
+/// most accurate over a narrow range, where the length changes the
+/// frequency least (the parameter enters its dynamics additively).
+pub const LENGTH_MARGIN: f64 = 0.05;
+
+/// The rod whose small swings have the angular frequency `w`:
+/// `w^2 = 3 g / (2 L)`.
+fn rod_length(g: f64, w: f64) -> f64 {
+    3.0 * g / (2.0 * w * w)
+}
 
 /// The loop's settings.
 #[derive(Debug, Clone, Serialize)]
@@ -173,7 +187,7 @@ fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<(EffectKind, f64)>, String
     }
 }
 
-fn train_and_export(dir: &Path, cfg: TrainConfig, quiet: bool) -> Result<PathBuf> {
+fn train_and_export(dir: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<PathBuf> {
     let run = dir.join("run");
     let paths = RunPaths::new(&run);
     let done: Option<RunState> = std::fs::read_to_string(&paths.state)
@@ -186,16 +200,55 @@ fn train_and_export(dir: &Path, cfg: TrainConfig, quiet: bool) -> Result<PathBuf
     match done {
         Some(s) if same && s.iteration >= cfg.iterations => {}
         Some(_) if same => {
-            train::train(&run, cfg, true, quiet)?;
+            train::train_with(&run, cfg, true, bar)?;
         }
         _ => {
             let _ = std::fs::remove_dir_all(&run);
-            train::train(&run, cfg, false, quiet)?;
+            train::train_with(&run, cfg, false, bar)?;
         }
     }
     let blob = dir.join("model.kkf");
     export::export(&run, &blob)?;
     Ok(blob)
+}
+
+/// Trains and exports the declared model and, when an effect was chosen,
+/// the model with it, at the same time (one thread each: a training
+/// keeps about one core busy). Returns the two blobs' paths.
+fn train_both(
+    out: &Path,
+    cfg: &TrainConfig,
+    effect: Option<&EffectRange>,
+    quiet: bool,
+) -> Result<(PathBuf, Option<PathBuf>)> {
+    let bars = MultiProgress::new();
+    let bar = |name: &str| {
+        let b = if quiet {
+            ProgressBar::hidden()
+        } else {
+            bars.add(ProgressBar::new(0))
+        };
+        b.set_prefix(format!("{name:>11} "));
+        b
+    };
+    let declared_bar = bar("declared");
+    let effect_bar = bar("with effect");
+    std::thread::scope(|s| {
+        let with = effect.map(|e| {
+            let mut c = cfg.clone();
+            c.effect = Some(e.clone());
+            let dir = out.join("with-effect");
+            s.spawn(move || train_and_export(&dir, c, effect_bar))
+        });
+        let declared = train_and_export(&out.join("declared"), cfg.clone(), declared_bar);
+        let with = with
+            .map(|h| {
+                h.join()
+                    .map_err(|_| anyhow::anyhow!("the training with the effect panicked"))?
+            })
+            .transpose();
+        Ok((declared?, with?))
+    })
 }
 
 /// Runs the loop into `out` (a finished training with the same config is
@@ -269,16 +322,9 @@ pub fn close_loop(
     };
     data::write(&fit_ds, out, "fit")?;
     // 4. The declared model around the first parts.
-    let lp: Vec<f64> = fit_ds
-        .rollouts
-        .iter()
-        .map(|r| {
-            diagnose::physics_length(&r.t, &r.xs, dt, opts.g)
-                .with_context(|| format!("rollout {}: no restoring force", r.id))
-        })
-        .collect::<Result<_>>()?;
-    let lo = 0.8 * lp.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = 1.25 * lp.iter().copied().fold(0.0, f64::max);
+    let lp: Vec<f64> = diags.iter().map(|d| rod_length(opts.g, d.w)).collect();
+    let lo = (1.0 - LENGTH_MARGIN) * lp.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = (1.0 + LENGTH_MARGIN) * lp.iter().copied().fold(0.0, f64::max);
     let lengths: Vec<f64> = (0..5).map(|k| lo + (hi - lo) * k as f64 / 4.0).collect();
     let amp: Vec<f64> = fit_ds
         .rollouts
@@ -301,28 +347,22 @@ pub fn close_loop(
         "training the declared model on lengths {lo:.4}..{hi:.4} m, theta_0 {:.2}..{:.2} rad",
         theta0[0], theta0[1]
     ));
-    let declared = train_and_export(&out.join("declared"), cfg.clone(), opts.quiet)?;
-    let bytes = std::fs::read(&declared)?;
-    let before =
-        Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", declared.display()))?;
-    // 5. The effect.
+    // 5. The effect; both models are trained at once.
     let (chosen, effect_reason) = choose_effect(&diags);
     let effect_added = chosen.map(|(name, c)| EffectRange {
         name,
         range: [(2.0 * c).min(0.0), (2.0 * c).max(0.0)],
     });
-    let after_blob = match &effect_added {
-        Some(e) => {
-            say(&format!(
-                "training with {} in {:?} ({effect_reason})",
-                e.name, e.range
-            ));
-            let mut c = cfg.clone();
-            c.effect = Some(e.clone());
-            Some(train_and_export(&out.join("with-effect"), c, opts.quiet)?)
-        }
-        None => None,
-    };
+    if let Some(e) = &effect_added {
+        say(&format!(
+            "and with {} in {:?} ({effect_reason})",
+            e.name, e.range
+        ));
+    }
+    let (declared, after_blob) = train_both(out, &cfg, effect_added.as_ref(), opts.quiet)?;
+    let bytes = std::fs::read(&declared)?;
+    let before =
+        Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", declared.display()))?;
     let after_bytes = after_blob.as_ref().map(std::fs::read).transpose()?;
     let after = after_bytes
         .as_deref()
@@ -348,7 +388,7 @@ pub fn close_loop(
             None => None,
         };
         // The physics at the swings' w (a rod: w^2 = 3 g / 2 L).
-        let mut p = Pendulum::new(3.0 * opts.g / (2.0 * d.w * d.w));
+        let mut p = Pendulum::new(rod_length(opts.g, d.w));
         p.g = opts.g;
         let physics_before = forecast::physics(&p, &r.xs, dt).map_err(ctx)?;
         p.effects = d

@@ -124,9 +124,24 @@ fn save_checkpoint<M: Trainable>(
     Ok(())
 }
 
+/// Held while a fresh training seeds the backend and draws its initial
+/// weights.
+static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Trains the model `cfg.model` into `dir`; with `resume`, continues from its
 /// last checkpoint (using the config saved there, whose model kind wins).
 pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<RunState> {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    train_with(dir, cfg, resume, bar)
+}
+
+/// [`train`], showing progress on `bar` (e.g. one of a `MultiProgress`
+/// when two trainings run at once).
+pub fn train_with(dir: &Path, cfg: TrainConfig, resume: bool, bar: ProgressBar) -> Result<RunState> {
     let kind = if resume {
         let saved: TrainConfig = serde_json::from_str(
             &std::fs::read_to_string(RunPaths::new(dir).config).context("no run to resume")?,
@@ -136,8 +151,8 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
         cfg.model
     };
     match kind {
-        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, quiet),
-        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, quiet),
+        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, bar),
+        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, bar),
     }
 }
 
@@ -145,10 +160,17 @@ fn train_model<M: Trainable>(
     dir: &Path,
     cfg: TrainConfig,
     resume: bool,
-    quiet: bool,
+    bar: ProgressBar,
 ) -> Result<RunState> {
     let paths = RunPaths::new(dir);
     let device = device();
+    // The backend's generator is global and burn draws the initial weights
+    // lazily, in the first forward pass: a fresh run holds this lock from
+    // seeding until its first batch's losses, so that its weights are a
+    // function of its seed when two trainings run at once
+    // (`koopman close-loop`).
+    let mut init_guard =
+        (!resume).then(|| INIT.lock().unwrap_or_else(std::sync::PoisonError::into_inner));
     let saved: Option<TrainConfig> = if resume {
         Some(serde_json::from_str(
             &std::fs::read_to_string(&paths.config).context("no run to resume")?,
@@ -217,14 +239,10 @@ fn train_model<M: Trainable>(
         &cfg.length_spec(),
         cfg.effect.as_ref().map(|e| e.name.name()),
     )?;
-    let bar = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(cfg.iterations as u64)
-    };
+    bar.set_length(cfg.iterations as u64);
     bar.set_style(
         ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
+            "{prefix}{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
@@ -235,6 +253,7 @@ fn train_model<M: Trainable>(
     while state.iteration < cfg.iterations {
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
         let l = model.batch_losses(x, p, &cfg);
+        init_guard.take();
         let [pa, pb, pc] = &l.parts;
         let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
         let grads = GradientsParams::from_grads(l.total.backward(), &model);
