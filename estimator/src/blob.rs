@@ -255,6 +255,12 @@ pub enum Reading {
     /// `q` at or above `lo + hi` reads as an infinite or negative value,
     /// reported as it is.
     Reciprocal,
+    /// `q = p - (lo + hi) / 2`: the value less the middle of its training
+    /// range. A coefficient trained over a narrow range away from zero
+    /// (an effect diagnosed on a recording) would otherwise enter the
+    /// least-squares fit of `F` as a nearly constant column, nearly
+    /// collinear with the length's.
+    Centred,
 }
 
 /// One physical parameter carried in the filter state.
@@ -281,7 +287,14 @@ impl ParamSpec<'_> {
                 let [lo, hi] = self.train_range;
                 lo * hi / (lo + hi - q)
             }
+            Reading::Centred => q + self.middle(),
         }
+    }
+
+    /// The middle of the training range, `(lo + hi) / 2`.
+    #[inline]
+    fn middle(&self) -> f32 {
+        0.5 * (self.train_range[0] + self.train_range[1])
     }
 
     /// `dp/dq` at the filter's coordinate `q`: what turns the coordinate's
@@ -289,7 +302,7 @@ impl ParamSpec<'_> {
     #[inline]
     pub fn slope(&self, q: f32) -> f32 {
         match self.reading {
-            Reading::Direct => 1.0,
+            Reading::Direct | Reading::Centred => 1.0,
             Reading::Reciprocal => {
                 let [lo, hi] = self.train_range;
                 let d = lo + hi - q;
@@ -318,6 +331,7 @@ impl ParamSpec<'_> {
                 let [lo, hi] = self.train_range;
                 lo + hi - lo * hi / p
             }
+            Reading::Centred => p - self.middle(),
         }
     }
 

@@ -12,7 +12,7 @@
 //!    5 within [`LENGTH_MARGIN`] of the rods the swings' frequencies give, initial
 //!    angles covering their amplitudes, the given `g` and `dt`).
 //! 5. Add one dynamic effect as the filter's second parameter, its
-//!    coefficient drawn from `[0, 2c]`: the one named in the most
+//!    coefficient drawn from `c` within [`EFFECT_MARGIN`]: the one named in the most
 //!    recordings, ties broken by the larger summed `t` (the filter carries
 //!    one extra parameter; when two are named the report says which was
 //!    added and why). Train again with it.
@@ -53,6 +53,18 @@ pub const FIT_SHARE: f64 = 2.0 / 3.0;
 /// most accurate over a narrow range, where the length changes the
 /// frequency least (the parameter enters its dynamics additively).
 pub const LENGTH_MARGIN: f64 = 0.05;
+
+/// Half-width of the added effect's training range around the
+/// coefficients the swings give, as a share. Within it the filter
+/// estimates the coefficient (its prior: the middle of the range, with
+/// the diagnosis' uncertainty, [`Chosen::prior_std`]); a narrow range
+/// keeps the learned linear model accurate, as for the length.
+pub const EFFECT_MARGIN: f64 = 0.5;
+
+/// Least prior standard deviation of the added effect, as a share of its
+/// coefficient: the swing diagnosis' intervals cover the noise, not the
+/// error of its free-swing integrals.
+pub const EFFECT_PRIOR_FLOOR: f64 = 0.05;
 
 /// The rod whose small swings have the angular frequency `w`:
 /// `w^2 = 3 g / (2 L)`.
@@ -147,9 +159,45 @@ fn first_window(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<estimator::StepOut
     )?)
 }
 
+/// The dynamic effect chosen: the coefficients the recordings that name
+/// it give, and the largest of their standard errors.
+#[derive(Debug, Clone, Copy)]
+struct Chosen {
+    name: EffectKind,
+    /// Smallest and largest coefficient named.
+    coefficients: [f64; 2],
+    /// Largest standard error among them.
+    se: f64,
+}
+
+impl Chosen {
+    /// The training range: the coefficients widened by
+    /// [`EFFECT_MARGIN`] of their size on either side.
+    fn range(&self) -> EffectRange {
+        let [a, b] = self.coefficients;
+        let (lo, hi) = (a - EFFECT_MARGIN * a.abs(), b + EFFECT_MARGIN * b.abs());
+        EffectRange {
+            name: self.name,
+            range: [lo, hi],
+        }
+    }
+
+    /// The filter's prior standard deviation around the range's middle:
+    /// what the first parts say, the spread of the coefficients or twice
+    /// their standard error, and at least [`EFFECT_PRIOR_FLOOR`] of the
+    /// coefficient (the diagnosis' own model error).
+    fn prior_std(&self) -> f64 {
+        let [a, b] = self.coefficients;
+        (0.5 * (b - a))
+            .max(2.0 * self.se)
+            .max(EFFECT_PRIOR_FLOOR * a.abs().max(b.abs()))
+    }
+}
+
 /// Which dynamic effect to add (module docs, step 5), and why.
-fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<(EffectKind, f64)>, String) {
-    let mut tally: Vec<(EffectKind, usize, f64, f64)> = Vec::new();
+fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<Chosen>, String) {
+    // name, recordings, summed t, the choice so far
+    let mut tally: Vec<(EffectKind, usize, f64, Chosen)> = Vec::new();
     for d in diags {
         for e in d.effects.iter().filter(|e| e.name.is_dynamic()) {
             let t = e.coefficient / e.se.max(1e-300);
@@ -157,9 +205,23 @@ fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<(EffectKind, f64)>, String
                 Some(x) => {
                     x.1 += 1;
                     x.2 += t;
-                    x.3 = x.3.max(e.coefficient);
+                    let c = &mut x.3;
+                    c.coefficients = [
+                        c.coefficients[0].min(e.coefficient),
+                        c.coefficients[1].max(e.coefficient),
+                    ];
+                    c.se = c.se.max(e.se);
                 }
-                None => tally.push((e.name, 1, t, e.coefficient)),
+                None => tally.push((
+                    e.name,
+                    1,
+                    t,
+                    Chosen {
+                        name: e.name,
+                        coefficients: [e.coefficient; 2],
+                        se: e.se,
+                    },
+                )),
             }
         }
     }
@@ -167,14 +229,14 @@ fn choose_effect(diags: &[SwingDiagnosis]) -> (Option<(EffectKind, f64)>, String
     match tally.as_slice() {
         [] => (None, "no dynamic effect was named".into()),
         [(k, n, _, c)] => (
-            Some((*k, *c)),
+            Some(*c),
             format!(
                 "{k} was the only dynamic effect named ({n} of {} recordings)",
                 diags.len()
             ),
         ),
         [(k, n, t, c), rest @ ..] => (
-            Some((*k, *c)),
+            Some(*c),
             format!(
                 "{k} was named in {n} of {} recordings (summed t {t:.0}); also named: {}; the filter carries one extra parameter, so the most often named (then the larger summed t) was added",
                 diags.len(),
@@ -218,7 +280,7 @@ fn train_and_export(dir: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<Pa
 fn train_both(
     out: &Path,
     cfg: &TrainConfig,
-    effect: Option<&EffectRange>,
+    with_effect: Option<TrainConfig>,
     quiet: bool,
 ) -> Result<(PathBuf, Option<PathBuf>)> {
     let bars = MultiProgress::new();
@@ -234,9 +296,7 @@ fn train_both(
     let declared_bar = bar("declared");
     let effect_bar = bar("with effect");
     std::thread::scope(|s| {
-        let with = effect.map(|e| {
-            let mut c = cfg.clone();
-            c.effect = Some(e.clone());
+        let with = with_effect.map(|c| {
             let dir = out.join("with-effect");
             s.spawn(move || train_and_export(&dir, c, effect_bar))
         });
@@ -326,14 +386,13 @@ pub fn close_loop(
     let lo = (1.0 - LENGTH_MARGIN) * lp.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = (1.0 + LENGTH_MARGIN) * lp.iter().copied().fold(0.0, f64::max);
     let lengths: Vec<f64> = (0..5).map(|k| lo + (hi - lo) * k as f64 / 4.0).collect();
-    let amp: Vec<f64> = fit_ds
-        .rollouts
-        .iter()
-        .map(|r| r.xs.iter().map(|x| x[0].abs()).fold(0.0, f64::max))
-        .collect();
+    // Initial angles from half the smallest swing the first parts end
+    // with (the held-out parts go on losing amplitude) to 1.1 times the
+    // largest they start with.
     let theta0 = [
-        (0.5 * amp.iter().copied().fold(f64::INFINITY, f64::min)).max(0.1),
-        (1.1 * amp.iter().copied().fold(0.0, f64::max)).min(0.95 * std::f64::consts::PI),
+        (0.5 * diags.iter().map(|d| d.amplitude[1]).fold(f64::INFINITY, f64::min)).max(0.01),
+        (1.1 * diags.iter().map(|d| d.amplitude[0]).fold(0.0, f64::max))
+            .min(0.95 * std::f64::consts::PI),
     ];
     let mut cfg = TrainConfig::for_model(ModelKind::Klm);
     cfg.seed = opts.seed;
@@ -349,17 +408,21 @@ pub fn close_loop(
     ));
     // 5. The effect; both models are trained at once.
     let (chosen, effect_reason) = choose_effect(&diags);
-    let effect_added = chosen.map(|(name, c)| EffectRange {
-        name,
-        range: [(2.0 * c).min(0.0), (2.0 * c).max(0.0)],
-    });
+    let effect_added = chosen.map(|c| c.range());
+    let effect_prior_std = chosen.map(|c| c.prior_std());
     if let Some(e) = &effect_added {
         say(&format!(
             "and with {} in {:?} ({effect_reason})",
             e.name, e.range
         ));
     }
-    let (declared, after_blob) = train_both(out, &cfg, effect_added.as_ref(), opts.quiet)?;
+    let with_effect = effect_added.as_ref().map(|e| {
+        let mut c = cfg.clone();
+        c.effect = Some(e.clone());
+        c.prior_std_effect = effect_prior_std.unwrap_or(0.0);
+        c
+    });
+    let (declared, after_blob) = train_both(out, &cfg, with_effect, opts.quiet)?;
     let bytes = std::fs::read(&declared)?;
     let before =
         Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", declared.display()))?;

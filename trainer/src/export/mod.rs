@@ -16,7 +16,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use estimator::blob::{FilterSpec, ParamSpec, Reading};
+use estimator::blob::FilterSpec;
 use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model, PARAM_DIM};
 use serde::Serialize;
 use trainer_core::calibrate::{CalibrateConfig, Calibration, calibrate, map_bytes, permissive};
@@ -120,23 +120,7 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
     let ds = training_data(&cfg);
     let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
     let mut parts = BlobParts::new(&model.enc, &model.dec, &f);
-    let params = [
-        cfg.length_spec(),
-        match &cfg.effect {
-            Some(e) => ParamSpec {
-                name: e.name.name(),
-                declared: true,
-                train_range: [e.range[0] as f32, e.range[1] as f32],
-                reading: Reading::Direct,
-            },
-            None => ParamSpec {
-                name: "none",
-                declared: false,
-                train_range: [0.0, 0.0],
-                reading: Reading::Direct,
-            },
-        },
-    ];
+    let params = [cfg.length_spec(), cfg.effect_spec()];
     let mut q = [0.0f32; AUG_DIM];
     let mut r = [0.0f32; LATENT_DIM];
     let mut prior_var = [0.0f32; AUG_DIM];
@@ -147,13 +131,14 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
     }
     prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
     if let Some(e) = &cfg.effect {
+        // The effect's prior: the middle of its training range (its
+        // coordinate 0, the prior mean), with half the range as its
+        // standard deviation (or the config's).
+        let [lo, hi] = e.range;
         let std = if cfg.prior_std_effect > 0.0 {
             cfg.prior_std_effect
         } else {
-            e.range[0]
-                .abs()
-                .max(e.range[1].abs())
-                .max(f64::MIN_POSITIVE)
+            (0.5 * (hi - lo)).max(f64::MIN_POSITIVE)
         };
         prior_var[LATENT_DIM + 1] = (std * std) as f32;
     }

@@ -27,14 +27,7 @@ pub fn global_koopman(
         anyhow::ensure!(r.xs.len() == t, "rollouts of unequal length");
         x.extend(r.xs.iter().flat_map(|&v| norm.apply(v)));
         let m = ds.meta(r.id).context("rollout without truth")?;
-        let second = match &cfg.effect {
-            Some(e) => *m
-                .effects
-                .get(e.name.name())
-                .context("rollout without its effect's coefficient")?,
-            None => 0.0,
-        };
-        p.extend([m.length as f32, second as f32]);
+        p.extend(cfg.coordinates(m)?);
     }
     let b = ds.rollouts.len();
     let x = Tensor::<3>::from_data(TensorData::new(x, [b, t, 2]), &device);

@@ -2,6 +2,7 @@
 
 use estimator::blob::{Activation, ParamSpec, Reading};
 use serde::{Deserialize, Serialize};
+use trainer_core::data::RolloutMeta;
 use trainer_core::physics::EffectRange;
 use trainer_core::protocol::{DT, G, THETA0, TRAIN_LENGTHS};
 
@@ -40,7 +41,7 @@ pub struct TrainConfig {
     /// parameter is an unused zero).
     pub effect: Option<EffectRange>,
     /// Filter: prior standard deviation of the effect's coefficient (prior
-    /// mean 0); 0 means the top of its training range.
+    /// mean: the middle of its training range); 0 means half that range.
     pub prior_std_effect: f64,
     /// Rollouts per training length.
     pub rollouts_per_length: usize,
@@ -158,6 +159,41 @@ impl TrainConfig {
             train_range: [lo as f32, hi as f32],
             reading: self.length_reading,
         }
+    }
+
+    /// The effect as the filter's second parameter (its training range,
+    /// read [`Reading::Centred`]), or the undeclared padding parameter.
+    pub fn effect_spec(&self) -> ParamSpec<'static> {
+        match &self.effect {
+            Some(e) => ParamSpec {
+                name: e.name.name(),
+                declared: true,
+                train_range: [e.range[0] as f32, e.range[1] as f32],
+                reading: Reading::Centred,
+            },
+            None => ParamSpec {
+                name: "none",
+                declared: false,
+                train_range: [0.0, 0.0],
+                reading: Reading::Direct,
+            },
+        }
+    }
+
+    /// The filter's coordinates `q` of a training rollout's truth: the
+    /// length's and the effect's (0 without one). The one mapping the
+    /// training batches and the exported `F` share.
+    pub fn coordinates(&self, m: &RolloutMeta) -> anyhow::Result<[f32; 2]> {
+        let second = match &self.effect {
+            Some(e) => {
+                let c = *m.effects.get(e.name.name()).ok_or_else(|| {
+                    anyhow::anyhow!("rollout {} has no {} coefficient", m.rollout, e.name)
+                })?;
+                self.effect_spec().coordinate(c as f32)
+            }
+            None => 0.0,
+        };
+        Ok([self.length_spec().coordinate(m.length as f32), second])
     }
 
     /// Learning rate at iteration `i` (cosine from `lr` to `lr_final`).

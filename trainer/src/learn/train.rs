@@ -7,7 +7,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
-use estimator::blob::ParamSpec;
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -31,15 +30,9 @@ pub struct Batcher {
 }
 
 impl Batcher {
-    /// From a data set with its truth; the first parameter is the length's
-    /// coordinate under `length` (its reading), the second the coefficient
-    /// of the effect named `effect` (0 without one).
-    pub fn new(
-        ds: &Dataset,
-        norm: &Norm,
-        length: &ParamSpec<'_>,
-        effect: Option<&str>,
-    ) -> Result<Self> {
+    /// From a data set with its truth; the parameters are the filter's
+    /// coordinates of each rollout's truth ([`TrainConfig::coordinates`]).
+    pub fn new(ds: &Dataset, norm: &Norm, cfg: &TrainConfig) -> Result<Self> {
         let mut xs = Vec::new();
         let mut ps = Vec::new();
         let mut lengths: Vec<f64> = Vec::new();
@@ -49,14 +42,7 @@ impl Batcher {
                 .meta(r.id)
                 .context("training rollout without truth in its sidecar")?;
             xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
-            let second = match effect {
-                Some(name) => *m
-                    .effects
-                    .get(name)
-                    .with_context(|| format!("rollout {} has no {name} coefficient", r.id))?,
-                None => 0.0,
-            };
-            ps.push([length.coordinate(m.length as f32), second as f32]);
+            ps.push(cfg.coordinates(m)?);
             match lengths.iter().position(|&l| l == m.length) {
                 Some(k) => strata[k].push(i),
                 None => {
@@ -233,12 +219,7 @@ fn train_model<M: Trainable>(
             .num_threads(cfg.threads)
             .build_global();
     }
-    let batcher = Batcher::new(
-        &ds,
-        &state.norm,
-        &cfg.length_spec(),
-        cfg.effect.as_ref().map(|e| e.name.name()),
-    )?;
+    let batcher = Batcher::new(&ds, &state.norm, &cfg)?;
     bar.set_length(cfg.iterations as u64);
     bar.set_style(
         ProgressStyle::with_template(
@@ -299,7 +280,7 @@ mod tests {
             ..TrainConfig::for_model(kind)
         };
         let ds = training_data(&cfg);
-        let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg.length_spec(), None).unwrap();
+        let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg).unwrap();
         let (_, p) = b.batch(&cfg, iteration, &Device::flex());
         let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
         p.chunks(2).map(|c| c[0]).collect()
