@@ -63,6 +63,26 @@ proptest! {
         prop_assert!(spec.slope(q) > 0.0);
     }
 
+    /// A centred reading and its coordinate are inverses, the middle of
+    /// the range is coordinate 0, and the slope is 1. Coefficients of
+    /// either sign up to 10 in size, ranges up to 10 wide: the round trip
+    /// adds and subtracts the middle (at most 15), so its error is a few
+    /// ulp(15) = 9.5e-7; the tolerance is 1e-5.
+    #[test]
+    fn a_centred_reading_inverts_its_coordinate(
+        lo in -10.0f32..10.0,
+        width in 0.0f32..10.0,
+        at in -0.5f32..1.5,
+    ) {
+        use estimator::blob::{ParamSpec, Reading};
+        let hi = lo + width;
+        let spec = ParamSpec { name: "viscous", declared: true, train_range: [lo, hi], reading: Reading::Centred };
+        let p = lo + at * width;
+        prop_assert!((spec.read(spec.coordinate(p)) - p).abs() <= 1e-5, "{} vs {}", spec.read(spec.coordinate(p)), p);
+        prop_assert!(spec.coordinate(0.5 * (lo + hi)).abs() <= 1e-6);
+        prop_assert_eq!(spec.slope(spec.coordinate(p)), 1.0);
+    }
+
     /// Any bytes at all: an error or a model, never a panic.
     #[test]
     fn arbitrary_bytes_never_panic(b in proptest::collection::vec(any::<u8>(), 0..512)) {
