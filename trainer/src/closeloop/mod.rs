@@ -390,7 +390,11 @@ pub fn close_loop(
     // with (the held-out parts go on losing amplitude) to 1.1 times the
     // largest they start with.
     let theta0 = [
-        (0.5 * diags.iter().map(|d| d.amplitude[1]).fold(f64::INFINITY, f64::min)).max(0.01),
+        (0.5 * diags
+            .iter()
+            .map(|d| d.amplitude[1])
+            .fold(f64::INFINITY, f64::min))
+        .max(0.01),
         (1.1 * diags.iter().map(|d| d.amplitude[0]).fold(0.0, f64::max))
             .min(0.95 * std::f64::consts::PI),
     ];

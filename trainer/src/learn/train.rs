@@ -127,7 +127,12 @@ pub fn train(dir: &Path, cfg: TrainConfig, resume: bool, quiet: bool) -> Result<
 
 /// [`train`], showing progress on `bar` (e.g. one of a `MultiProgress`
 /// when two trainings run at once).
-pub fn train_with(dir: &Path, cfg: TrainConfig, resume: bool, bar: ProgressBar) -> Result<RunState> {
+pub fn train_with(
+    dir: &Path,
+    cfg: TrainConfig,
+    resume: bool,
+    bar: ProgressBar,
+) -> Result<RunState> {
     let kind = if resume {
         let saved: TrainConfig = serde_json::from_str(
             &std::fs::read_to_string(RunPaths::new(dir).config).context("no run to resume")?,
@@ -155,8 +160,10 @@ fn train_model<M: Trainable>(
     // seeding until its first batch's losses, so that its weights are a
     // function of its seed when two trainings run at once
     // (`koopman close-loop`).
-    let mut init_guard =
-        (!resume).then(|| INIT.lock().unwrap_or_else(std::sync::PoisonError::into_inner));
+    let mut init_guard = (!resume).then(|| {
+        INIT.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    });
     let saved: Option<TrainConfig> = if resume {
         Some(serde_json::from_str(
             &std::fs::read_to_string(&paths.config).context("no run to resume")?,
