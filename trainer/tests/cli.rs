@@ -743,6 +743,29 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
+    // The two models trained at once; the model with the effect, trained
+    // again alone from its saved config and exported, is the same blob
+    // byte for byte (its initial weights depend on its seed only).
+    let alone = d.join("alone");
+    run_ok(
+        koopman()
+            .args(["train", "--quiet", "--config"])
+            .arg(out.join("with-effect/run/config.json"))
+            .arg("--run")
+            .arg(&alone),
+    );
+    run_ok(
+        koopman()
+            .arg("export")
+            .arg(&alone)
+            .arg("--out")
+            .arg(d.join("alone.kkf")),
+    );
+    assert!(
+        std::fs::read(d.join("alone.kkf")).unwrap()
+            == std::fs::read(out.join("with-effect/model.kkf")).unwrap(),
+        "the model with the effect differs when trained alone"
+    );
 }
 
 #[test]
