@@ -33,7 +33,7 @@ use trainer_core::data::import::ImportOptions;
 use trainer_core::data::{self, Dataset, Rollout};
 use trainer_core::diagnose::{self, energy::SwingDiagnosis};
 use trainer_core::io::write_atomic;
-use trainer_core::physics::{Effect, EffectKind, EffectRange, Pendulum};
+use trainer_core::physics::{Effect, EffectKind, EffectRange, Pendulum, rod_length};
 
 mod figure;
 pub mod forecast;
@@ -65,12 +65,6 @@ pub const EFFECT_MARGIN: f64 = 0.5;
 /// coefficient: the swing diagnosis' intervals cover the noise, not the
 /// error of its free-swing integrals.
 pub const EFFECT_PRIOR_FLOOR: f64 = 0.05;
-
-/// The rod whose small swings have the angular frequency `w`:
-/// `w^2 = 3 g / (2 L)`.
-fn rod_length(g: f64, w: f64) -> f64 {
-    3.0 * g / (2.0 * w * w)
-}
 
 /// The loop's settings.
 #[derive(Debug, Clone, Serialize)]
@@ -382,7 +376,19 @@ pub fn close_loop(
     };
     data::write(&fit_ds, out, "fit")?;
     // 4. The declared model around the first parts.
-    let lp: Vec<f64> = diags.iter().map(|d| rod_length(opts.g, d.w)).collect();
+    let lp: Vec<f64> = diags
+        .iter()
+        .zip(&recs)
+        .map(|(d, (source, _))| {
+            let l = rod_length(opts.g, d.w * d.w);
+            anyhow::ensure!(
+                l.is_finite() && l > 0.0,
+                "{source}: the swings give no length (w = {} rad/s)",
+                d.w
+            );
+            Ok(l)
+        })
+        .collect::<Result<_>>()?;
     let lo = (1.0 - LENGTH_MARGIN) * lp.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = (1.0 + LENGTH_MARGIN) * lp.iter().copied().fold(0.0, f64::max);
     let lengths: Vec<f64> = (0..5).map(|k| lo + (hi - lo) * k as f64 / 4.0).collect();
@@ -455,7 +461,7 @@ pub fn close_loop(
             None => None,
         };
         // The physics at the swings' w (a rod: w^2 = 3 g / 2 L).
-        let mut p = Pendulum::new(rod_length(opts.g, d.w));
+        let mut p = Pendulum::new(rod_length(opts.g, d.w * d.w));
         p.g = opts.g;
         let physics_before = forecast::physics(&p, &r.xs, dt).map_err(ctx)?;
         p.effects = d

@@ -115,7 +115,6 @@ mod tests {
     use super::*;
     use burn::module::Param;
     use burn::tensor::{Device, Tensor, TensorData};
-    use estimator::blob::Reading;
     use estimator::{LATENT_DIM, Model};
     use trainer_core::calibrate::{CalibrateConfig, map_bytes, permissive};
 
@@ -180,20 +179,8 @@ mod tests {
             sigma_threshold: 0.05,
             schedule_steps: 0,
         };
-        let params = [
-            ParamSpec {
-                name: "length",
-                declared: true,
-                train_range: [2.0, 5.0],
-                reading: Reading::Reciprocal,
-            },
-            ParamSpec {
-                name: "none",
-                declared: false,
-                train_range: [0.0, 0.0],
-                reading: Reading::Direct,
-            },
-        ];
+        // The protocol's: lengths 2 and 5 read reciprocally, no effect.
+        let params = [cfg.length_spec(), cfg.effect_spec()];
         let blob = parts.blob(
             &norm,
             &cfg,

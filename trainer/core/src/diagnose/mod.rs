@@ -53,7 +53,7 @@ pub mod verdict;
 
 use crate::data::{Dataset, unbroken};
 use crate::metrics::{rms, scaled_mse, simulation_mse, spread};
-use crate::physics::{Effect, EffectKind, Pendulum};
+use crate::physics::{Effect, EffectKind, Pendulum, rod_length, rod_w2};
 use crate::protocol::ROLLOUT_LEN;
 use crate::track::track;
 use fit::ols;
@@ -170,12 +170,7 @@ pub fn physics_length(t: &[f64], xs: &[[f64; 2]], dt: f64, g: f64) -> Option<f64
         num += -a * s;
         den += s * s;
     }
-    (num > 0.0 && den > 0.0).then(|| 3.0 * g / (2.0 * num / den))
-}
-
-/// `w^2 = 3 g / (2 L)`.
-fn w2_of(g: f64, l: f64) -> f64 {
-    3.0 * g / (2.0 * l)
+    (num > 0.0 && den > 0.0).then(|| rod_length(g, num / den))
 }
 
 /// Step 1: per rollout, the estimator's view and the acceleration
@@ -218,7 +213,7 @@ fn residual_rows(
             rows.rollout.push(ri);
             rows.r.push((w[1][1] - pred[1]) / dt);
             rows.ends.push((w[0], w[1]));
-            rows.w2.push(w2_of(g, length_model));
+            rows.w2.push(rod_w2(g, length_model));
             acc.push((w[1][1] - w[0][1]) / dt);
         }
         let n = unbroken(&r.t, dt).min(ROLLOUT_LEN);
@@ -274,9 +269,9 @@ pub fn diagnose(model: &Model<'_>, ds: &Dataset, g: f64) -> Result<Diagnosis> {
     for (ri, (r, d)) in ds.rollouts.iter().zip(per.iter_mut()).enumerate() {
         // Simulated from x_0 up to the first gap.
         let xs = &r.xs[..unbroken(&r.t, dt)];
-        let w2m = w2_of(g, d.length_model);
-        let before_l = 3.0 * g / (2.0 * (w2m + nuisance_only.beta[ri]));
-        d.length_fit = 3.0 * g / (2.0 * (w2m + sel.fit.beta[ri]));
+        let w2m = rod_w2(g, d.length_model);
+        let before_l = rod_length(g, w2m + nuisance_only.beta[ri]);
+        d.length_fit = rod_length(g, w2m + sel.fit.beta[ri]);
         d.sim_mse_before = physics_mse(xs, dt, g, before_l, &[], 0.0, 0.0);
         d.sim_mse_after = physics_mse(
             xs,

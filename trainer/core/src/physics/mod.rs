@@ -21,6 +21,19 @@ pub struct Pendulum {
     pub effects: Vec<Effect>,
 }
 
+/// `w^2 = 3 g / (2 L)`: the squared angular frequency of the small swings
+/// of a rod of length `l` under gravity `g` (the pendulum here).
+pub fn rod_w2(g: f64, l: f64) -> f64 {
+    3.0 * g / (2.0 * l)
+}
+
+/// The length of the rod whose small swings have the squared angular
+/// frequency `w2` under gravity `g`: `L = 3 g / (2 w^2)`, the inverse of
+/// [`rod_w2`].
+pub fn rod_length(g: f64, w2: f64) -> f64 {
+    3.0 * g / (2.0 * w2)
+}
+
 impl Pendulum {
     /// The protocol's pendulum of length `length` with no effect.
     pub fn new(length: f64) -> Self {
@@ -36,7 +49,7 @@ impl Pendulum {
     pub fn deriv(&self, x: [f64; 2], u: f64) -> [f64; 2] {
         let [theta, theta_dot] = x;
         let l = self.length;
-        let mut acc = -(3.0 * self.g / (2.0 * l)) * theta.sin() + 3.0 * u / (self.mass * l * l);
+        let mut acc = -rod_w2(self.g, l) * theta.sin() + 3.0 * u / (self.mass * l * l);
         for e in &self.effects {
             acc += e.accel(theta, theta_dot);
         }
