@@ -21,6 +21,13 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
+//! Format 6 added the gravity the model was trained at ([`Body::g`]),
+//! which parameters the dynamics see only through it
+//! ([`ParamSpec::scales_with_g`]) and the smallest swing the verdict
+//! trusts ([`TrustSpec::min_swing`]), so that a user who declares their g
+//! gets the length of their pendulum rather than of the trained one
+//! (`Estimator::with_gravity`).
+//!
 //! Format 5 added [`TrustSpec`]: the checks of the trust verdict beyond
 //! sigma (the training envelope as an occupancy map, the calibrated range
 //! of the first parameter) and the calibration of the reported standard
@@ -69,7 +76,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 5;
+pub const FORMAT_VERSION: u16 = 6;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -275,6 +282,12 @@ pub struct ParamSpec<'a> {
     pub train_range: [f32; 2],
     /// How the filter's coordinate reads as the parameter.
     pub reading: Reading,
+    /// True when the dynamics see the parameter only through `g / p` (a
+    /// pendulum's length: `w^2 = 3 g / (2 L)` for a rod): the motion of
+    /// `p` at gravity `g'` is the trained motion of `p g / g'`, so at a
+    /// declared `g'` the estimate reads as `g' / g` times the trained
+    /// value ([`Body::g`] the training gravity).
+    pub scales_with_g: bool,
 }
 
 impl ParamSpec<'_> {
@@ -499,13 +512,22 @@ pub struct TrustSpec<'a> {
     pub std_scale: [f32; PARAM_DIM],
     /// ... and `b` this floor (the model's own error, in the coordinate).
     pub std_floor: [f32; PARAM_DIM],
+    /// The smallest swing (half the range of `theta` over the last
+    /// [`WINDOW`](crate::WINDOW) or more measurements, rad) that passes:
+    /// below it held-out rollouts read the length more than 20% off (0:
+    /// every swing passes).
+    pub min_swing: f32,
 }
 
 impl TrustSpec<'_> {
     fn check(&self) -> Result<(), Error> {
         self.envelope.check()?;
         let [lo, hi] = self.range;
-        let finite = lo.is_finite() && hi.is_finite() && lo <= hi;
+        let finite = lo.is_finite()
+            && hi.is_finite()
+            && lo <= hi
+            && self.min_swing.is_finite()
+            && self.min_swing >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
         if finite && stds {
@@ -521,6 +543,9 @@ impl TrustSpec<'_> {
 pub struct Body<'a> {
     /// Sampling interval of the model, seconds.
     pub dt: f32,
+    /// Gravity the model was trained at, m/s^2 (see
+    /// [`ParamSpec::scales_with_g`]).
+    pub g: f32,
     /// Hidden activation of both MLPs.
     pub activation: Activation,
     /// Normalisation offset `mu` (`x_n = (x - mu) / s`).
@@ -652,7 +677,8 @@ impl<'a> Blob<'a> {
     pub fn validate(&self) -> Result<(), Error> {
         let b = &self.body;
         let finite = |a: &[f32]| a.iter().all(|v| v.is_finite());
-        if !(b.dt.is_finite() && b.dt > 0.0 && finite(&b.norm_mu)) {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !(positive(b.dt) && positive(b.g) && finite(&b.norm_mu)) {
             return Err(Error::BlobNonFinite);
         }
         if !b.norm_s.iter().all(|v| v.is_finite() && *v > 0.0) {

@@ -25,7 +25,8 @@ pub enum Error {
     /// Bytes follow the end of the blob.
     BlobTrailingBytes,
     /// A weight, a normalisation constant or a filter setting is NaN or
-    /// infinite, or a variance is not positive.
+    /// infinite, or a variance, the sampling interval or the gravity is
+    /// not positive.
     BlobNonFinite,
     /// The rows of `F` for the parameters are not the identity: the blob
     /// does not keep the parameters static, which the filter relies on.
@@ -50,6 +51,8 @@ pub enum Error {
     /// A prediction without a measurement was asked of a filter that has
     /// not seen its first measurement (there is no state to advance).
     FilterNotStarted,
+    /// The gravity declared to the estimator is not finite and positive.
+    InputBadGravity,
 }
 
 impl Error {
@@ -64,7 +67,9 @@ impl Error {
             Error::BlobBadCrc => "blob: CRC mismatch (corrupted)",
             Error::BlobMalformed => "blob: body could not be decoded",
             Error::BlobTrailingBytes => "blob: trailing bytes after the end",
-            Error::BlobNonFinite => "blob: non-finite weight or non-positive variance",
+            Error::BlobNonFinite => {
+                "blob: non-finite weight, or non-positive variance, interval or gravity"
+            }
             Error::BlobParamsNotStatic => "blob: F does not keep the parameters static",
             Error::BlobBadReading => "blob: a parameter's reading is undefined on its range",
             Error::BlobMisaligned => "blob: weights not 4-byte aligned in memory",
@@ -75,6 +80,7 @@ impl Error {
             Error::InputBadLength => "input: buffer has the wrong length",
             Error::FilterNonFinite => "filter: update produced a non-finite state",
             Error::FilterNotStarted => "filter: no first measurement to predict from",
+            Error::InputBadGravity => "input: gravity must be finite and positive",
         }
     }
 }

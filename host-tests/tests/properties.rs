@@ -54,7 +54,7 @@ proptest! {
     ) {
         use estimator::blob::{ParamSpec, Reading};
         let hi = lo * ratio;
-        let spec = ParamSpec { name: "length", declared: true, train_range: [lo, hi], reading: Reading::Reciprocal };
+        let spec = ParamSpec { name: "length", declared: true, train_range: [lo, hi], reading: Reading::Reciprocal, scales_with_g: true };
         let p = lo / 2.0 + at * (2.0 * hi - lo / 2.0);
         let q = spec.coordinate(p);
         prop_assert!((spec.read(q) - p).abs() <= 1e-4 * p, "{} vs {}", spec.read(q), p);
@@ -76,7 +76,7 @@ proptest! {
     ) {
         use estimator::blob::{ParamSpec, Reading};
         let hi = lo + width;
-        let spec = ParamSpec { name: "viscous", declared: true, train_range: [lo, hi], reading: Reading::Centred };
+        let spec = ParamSpec { name: "viscous", declared: true, train_range: [lo, hi], reading: Reading::Centred, scales_with_g: false };
         let p = lo + at * width;
         prop_assert!((spec.read(spec.coordinate(p)) - p).abs() <= 1e-5, "{} vs {}", spec.read(spec.coordinate(p)), p);
         prop_assert!(spec.coordinate(0.5 * (lo + hi)).abs() <= 1e-6);

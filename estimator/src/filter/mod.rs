@@ -70,7 +70,7 @@ mod two_stage;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
-use crate::trust::{Checks, EnvelopeWindow, Spread, Trust};
+use crate::trust::{Checks, EnvelopeWindow, Spread, SwingWindow, Trust};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
 
 /// `[y; p]` as a vector.
@@ -88,7 +88,8 @@ pub struct StepOutput {
     /// Index of the measurement just consumed (0 for the first).
     pub t: u32,
     /// Parameter estimates: the filter's coordinates read through each
-    /// parameter's [`Reading`](crate::blob::Reading).
+    /// parameter's [`Reading`](crate::blob::Reading) (a length scaled to
+    /// the declared gravity, [`Estimator::with_gravity`]).
     pub params: [f32; PARAM_DIM],
     /// Their standard deviations, to first order: `|dp/dq|` times the
     /// coordinate's as calibrated at export, `sqrt((a s)^2 + b^2)` with `s`
@@ -112,6 +113,10 @@ pub struct StepOutput {
     /// Measurements off the training envelope among the last
     /// [`WINDOW`](crate::WINDOW).
     pub off_envelope: u16,
+    /// The swing: half the range of `theta` over the last
+    /// [`WINDOW`](crate::WINDOW) to 2 [`WINDOW`](crate::WINDOW)
+    /// measurements (NaN when only encoded measurements were given).
+    pub swing: f32,
 }
 
 /// The estimator: a fixed-size filter state over one model.
@@ -142,6 +147,11 @@ pub struct Estimator<'m> {
     bridged: bool,
     spread: Spread,
     window: EnvelopeWindow,
+    swing: SwingWindow,
+    /// Declared gravity over the blob's training gravity: what a parameter
+    /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
+    /// reads as, times its trained value (1 until declared).
+    g_ratio: f32,
 }
 
 impl<'m> Estimator<'m> {
@@ -161,7 +171,27 @@ impl<'m> Estimator<'m> {
             bridged: false,
             spread: Spread::default(),
             window: EnvelopeWindow::default(),
+            swing: SwingWindow::default(),
+            g_ratio: 1.0,
         }
+    }
+
+    /// The same filter for a system at gravity `g` (m/s^2) rather than the
+    /// blob's training gravity [`Body::g`](crate::blob::Body::g): a
+    /// pendulum's motion tells `g / L` only, so the length it reports is
+    /// the trained model's times `g / Body::g`, and so is its standard
+    /// deviation. The filter, its coordinates and the trust checks are
+    /// those of the trained model (the motion is the same). Refused with
+    /// [`Error::InputBadGravity`] unless `g` is finite and positive.
+    pub fn with_gravity(self, g: f32) -> Result<Self, Error> {
+        let trained = self.model.blob().body.g;
+        if !(g.is_finite() && g > 0.0) {
+            return Err(Error::InputBadGravity);
+        }
+        Ok(Estimator {
+            g_ratio: g / trained,
+            ..self
+        })
     }
 
     /// A filter that ignores the blob's gain schedule and runs the
@@ -174,10 +204,12 @@ impl<'m> Estimator<'m> {
         }
     }
 
-    /// Forgets everything seen (and keeps whether the schedule is used).
+    /// Forgets everything seen (and keeps whether the schedule is used and
+    /// the declared gravity).
     pub fn reset(&mut self) {
         *self = Estimator {
             scheduled: self.scheduled,
+            g_ratio: self.g_ratio,
             ..Estimator::new(self.model)
         };
     }
@@ -267,7 +299,7 @@ impl<'m> Estimator<'m> {
         }
         let x_n = self.model.normalise(raw);
         let z = self.model.encode(&x_n);
-        self.update(&z, Some(&x_n))
+        self.update(&z, Some((raw, &x_n)))
     }
 
     /// Advances the filter one model step without a measurement (a sample
@@ -330,9 +362,9 @@ impl<'m> Estimator<'m> {
         self.update(z, None)
     }
 
-    /// One measurement, encoded (`z`) and normalised (`x_n`, for the
-    /// envelope check).
-    fn update(&mut self, z: &Latent, x_n: Option<&State>) -> Result<StepOutput, Error> {
+    /// One measurement, encoded (`z`), raw and normalised (`x_n`, for the
+    /// swing and envelope checks).
+    fn update(&mut self, z: &Latent, x: Option<(&State, &State)>) -> Result<StepOutput, Error> {
         if !z.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFiniteInput);
         }
@@ -351,7 +383,8 @@ impl<'m> Estimator<'m> {
             self.bridged = false;
             self.spread = Spread::default();
             self.window = EnvelopeWindow::default();
-            self.observe(x_n);
+            self.swing = SwingWindow::default();
+            self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
         }
         let t = self.t.saturating_add(1);
@@ -400,17 +433,19 @@ impl<'m> Estimator<'m> {
         if t >= u32::from(spec.burn_in) {
             self.spread.push(&correction);
         }
-        self.observe(x_n);
+        self.observe(x);
         Ok(self.output(correction))
     }
 
-    /// Records whether the measured state `x_n` lies in the training
-    /// envelope: at the estimated parameter once past the burn-in, at any
-    /// before (the estimate is still settling).
-    fn observe(&mut self, x_n: Option<&State>) {
-        let Some(x_n) = x_n else {
+    /// Records the measured angle's size, and whether the measured state
+    /// `x_n` lies in the training envelope: at the estimated parameter
+    /// once past the burn-in, at any before (the estimate is still
+    /// settling).
+    fn observe(&mut self, x: Option<(&State, &State)>) {
+        let Some((raw, x_n)) = x else {
             return;
         };
+        self.swing.push(raw.first().copied().unwrap_or(0.0));
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
         let q = tail(&self.g).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
@@ -446,9 +481,14 @@ impl<'m> Estimator<'m> {
             .zip(&calib.std_scale)
             .zip(&calib.std_floor)
         {
-            *p = spec.read(*q);
+            let scale = if spec.scales_with_g {
+                self.g_ratio
+            } else {
+                1.0
+            };
+            *p = scale * spec.read(*q);
             let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
-            *s = libm::fabsf(spec.slope(*q)) * calibrated;
+            *s = scale * libm::fabsf(spec.slope(*q)) * calibrated;
         }
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
@@ -463,6 +503,7 @@ impl<'m> Estimator<'m> {
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
             in_range: q0 >= lo && q0 <= hi,
             in_envelope: self.window.count() <= calib.envelope_max_off,
+            swing_ok: self.swing.swing().is_none_or(|a| a >= calib.min_swing),
         };
         StepOutput {
             t: self.t,
@@ -474,6 +515,7 @@ impl<'m> Estimator<'m> {
             sigma,
             trust: checks.verdict(),
             off_envelope: self.window.count(),
+            swing: self.swing.swing().unwrap_or(f32::NAN),
         }
     }
 }

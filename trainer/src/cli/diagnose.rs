@@ -4,7 +4,6 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use trainer::export::config_of;
 use trainer_core::data;
 use trainer_core::diagnose;
 
@@ -29,8 +28,9 @@ pub struct Args {
     /// Write diagnosis.json and residual.png here.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Gravity of the declared physics (default: the weights' training
-    /// config, else the protocol's 10).
+    /// Gravity of the rig, m/s^2: the declared physics' and the one the
+    /// estimator's length is scaled to (default: the weights' training
+    /// gravity).
     #[arg(long)]
     g: Option<f64>,
     #[command(flatten)]
@@ -40,9 +40,9 @@ pub struct Args {
 /// Runs it: the swing diagnosis of each recording (its own stamps), then
 /// the one-step residual regression of the imported data with the model.
 pub fn run(a: Args) -> Result<()> {
-    let g = a.g.unwrap_or_else(|| config_of(&a.weights).g);
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
+    let g = a.g.unwrap_or(f64::from(model.blob().body.g));
     let opts = a.recording.options()?;
     let recs = data::read_recordings(&a.data, &opts)?;
     let swings = diagnose::diagnose_recordings(&recs);

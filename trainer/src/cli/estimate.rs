@@ -22,6 +22,11 @@ pub struct Args {
     /// One JSON object per rollout and line.
     #[arg(long)]
     json: bool,
+    /// Gravity of the rig, m/s^2: the motion tells `g / L` only, so the
+    /// length is reported for this g (default: the weights' training
+    /// gravity, which the blob records).
+    #[arg(long)]
+    g: Option<f32>,
 }
 
 /// Runs it.
@@ -30,6 +35,10 @@ pub fn run(a: Args) -> Result<()> {
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read(&a.data, 2)?;
     let dt = f64::from(model.blob().body.dt);
+    let g = a.g.unwrap_or(model.blob().body.g);
+    let fresh = Estimator::new(&model)
+        .with_gravity(g)
+        .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?;
     data::check_interval_with(&ds, dt, true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
@@ -40,7 +49,7 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     for r in &ds.rollouts {
-        let tracked = track(&mut Estimator::new(&model), r, dt, a.steps)
+        let tracked = track(&mut fresh.clone(), r, dt, a.steps)
             .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
         let (out, n) = (tracked.out, tracked.measured);
         let trusted = out.trust.is_trusted();
@@ -51,7 +60,7 @@ pub fn run(a: Args) -> Result<()> {
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                 "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
-                "predicted": tracked.predicted, "off_envelope": out.off_envelope,
+                "predicted": tracked.predicted, "off_envelope": out.off_envelope, "g": g,
             });
             println!("{v}");
         } else {

@@ -95,6 +95,7 @@ impl BlobParts {
             header: Header::CURRENT,
             body: Body {
                 dt: cfg.dt as f32,
+                g: cfg.g as f32,
                 activation: cfg.activation,
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),

@@ -158,6 +158,7 @@ impl TrainConfig {
             declared: true,
             train_range: [lo as f32, hi as f32],
             reading: self.length_reading,
+            scales_with_g: true,
         }
     }
 
@@ -170,12 +171,14 @@ impl TrainConfig {
                 declared: true,
                 train_range: [e.range[0] as f32, e.range[1] as f32],
                 reading: Reading::Centred,
+                scales_with_g: false,
             },
             None => ParamSpec {
                 name: "none",
                 declared: false,
                 train_range: [0.0, 0.0],
                 reading: Reading::Direct,
+                scales_with_g: false,
             },
         }
     }

@@ -194,7 +194,10 @@ fn residual_rows(
     let mut acc = Vec::new();
     for (ri, r) in ds.rollouts.iter().enumerate() {
         anyhow::ensure!(r.xs.len() >= 8, "rollout {}: too short to diagnose", r.id);
-        let out = track(&mut Estimator::new(model), r, dt, None)?.out;
+        let mut est = Estimator::new(model)
+            .with_gravity(g as f32)
+            .map_err(|e| anyhow::anyhow!("g = {g}: {e}"))?;
+        let out = track(&mut est, r, dt, None)?.out;
         let est = out.params[0];
         let trusted = out.trust.is_trusted();
         let length_model = if trusted && est > 0.0 {
