@@ -447,3 +447,57 @@ fn a_blob_is_read_in_place_only_at_an_aligned_address() {
         }
     }
 }
+
+/// A pendulum of length L at gravity g swings as one of L g_0 / g at the
+/// blob's g_0 = 10 (`w^2 = 3 g / (2 L)`). Declared, the estimator reports
+/// the length for the rig's g: the trained model's estimate times
+/// g / g_0, its standard deviation likewise, and everything in the
+/// trained frame (coordinate, sigma, verdict) as without the declaration.
+/// A gravity that is not finite and positive is refused.
+#[test]
+fn a_declared_gravity_scales_the_length_only() {
+    use trainer_core::physics::Pendulum;
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    assert_eq!(m.blob().body.g, 10.0);
+    assert!(m.blob().body.params[0].scales_with_g);
+    for bad in [0.0, -9.81, f32::NAN, f32::INFINITY] {
+        assert_eq!(
+            Estimator::new(&m).with_gravity(bad).err(),
+            Some(Error::InputBadGravity),
+            "g = {bad}"
+        );
+    }
+    // A 3.4 m rod at g = 9.81 moves as a 3.4 x 10 / 9.81 = 3.466 m rod at
+    // g = 10; released at 2.2 rad, inside the trained swings.
+    let mut p = Pendulum::new(3.4);
+    p.g = 9.81;
+    let xs: Vec<[f32; 2]> = p
+        .rollout([2.2, 0.0], WINDOW, 0.05)
+        .iter()
+        .map(|x| [x[0] as f32, x[1] as f32])
+        .collect();
+    let plain = estimator::filter::run(&mut Estimator::new(&m), &xs).unwrap();
+    let mut declared = Estimator::new(&m).with_gravity(9.81).unwrap();
+    let out = estimator::filter::run(&mut declared, &xs).unwrap();
+    let ratio = 9.81f32 / 10.0;
+    // One f32 multiplication apart: 1e-6 relative is a few ulps.
+    assert!((out.params[0] - plain.params[0] * ratio).abs() <= 1e-6 * out.params[0]);
+    assert!((out.param_std[0] - plain.param_std[0] * ratio).abs() <= 1e-6 * out.param_std[0]);
+    assert_eq!(out.coordinate, plain.coordinate);
+    assert_eq!(out.sigma, plain.sigma);
+    assert_eq!(out.trust, plain.trust);
+    // The undeclared padding parameter does not scale.
+    assert_eq!(out.params[1], plain.params[1]);
+    // The declared length is the rig's, 3.4 m, within 10% (the model's
+    // own error in distribution is up to 20%; here it is smaller).
+    assert!(
+        (f64::from(out.params[0]) - 3.4).abs() < 0.1 * 3.4,
+        "{}",
+        out.params[0]
+    );
+    // A reset keeps the declaration.
+    declared.reset();
+    let again = estimator::filter::run(&mut declared, &xs).unwrap();
+    assert_eq!(again.params, out.params);
+}

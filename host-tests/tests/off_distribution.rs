@@ -9,17 +9,17 @@
 //! distribution here: a length uniform in [2, 5], the same release angles,
 //! nothing else.
 //!
-//! What is asserted is what the verdict promises: at most 5% of the
-//! in-distribution rollouts flagged, every rollout at L = 0.5 and 1
-//! flagged (Table 1's claim), no non-physical length trusted, and at most
-//! one wrong length trusted in 60 (under 2%) on every axis but three.
-//! Those three are held at what the shipped verdict does, so that they
-//! cannot get worse unseen: Coulomb friction and a sensor offset (2 of
-//! 60 each: the friction or the offset is too small within 64 samples to
-//! move the swing off the envelope, and the length is 20 to 30% off), and
-//! g not declared, which no check on the measurements can see (a pendulum
-//! of length L at g moves exactly as one of length 10 L / g at g = 10).
-//! Declared (`Estimator::with_gravity`), g is an axis like the others.
+//! What is asserted is what the verdict promises: at most 5% false
+//! alarms in distribution (flags on lengths within 20%), every rollout at
+//! L = 0.5 and 1 flagged (Table 1's claim), no non-physical length
+//! trusted, and at most one wrong length trusted in 60 (under 2%) on every
+//! axis but two. Those two are held at what the shipped verdict does, so
+//! that they cannot get worse unseen: Coulomb friction (2 of 60: the
+//! friction is too weak within 64 samples to move the swing off the
+//! envelope, and the length is 23 and 28% off), and g not declared, which
+//! no check on the measurements can see (a pendulum of length L at g moves
+//! exactly as one of length 10 L / g at g = 10). Declared
+//! (`Estimator::with_gravity`), g is an axis like the others.
 //! The table:
 //! `cargo test --release -p host-tests --test off_distribution -- --nocapture`.
 
@@ -162,17 +162,6 @@ fn off_distribution_suite() {
             let trusted = out.trust.is_trusted();
             row.rollouts += 1;
             row.flagged += usize::from(out.trust.is_untrusted());
-            if std::env::var("OFFD_DEBUG").is_ok_and(|v| name.starts_with(v.as_str())) {
-                eprintln!(
-                    "DBG {name}: L {truth:.3} g {:.2} th0 {:.3} est {est:.3} q {:.3} sigma {:.4} off {} {:?}",
-                    c.pendulum.g,
-                    c.theta0,
-                    out.coordinate[0],
-                    out.sigma[0],
-                    out.off_envelope,
-                    out.trust
-                );
-            }
             if !((est - truth).abs() <= 0.2 * truth) {
                 row.wrong += 1;
                 row.wrong_trusted += usize::from(trusted);
@@ -216,8 +205,8 @@ fn off_distribution_suite() {
         // At most 2% wrong and trusted; the known exceptions at most what
         // the shipped verdict gives (see the module docs).
         let allowed = match *name {
-            "coulomb 0.2 to 1 rad/s^2" | "sensor offset 0.05 to 0.2 rad" => 2,
-            "g 6 to 14, not declared" => 23,
+            "coulomb 0.2 to 1 rad/s^2" => 2,
+            "g 6 to 14, not declared" => 22,
             _ => N / 50,
         };
         assert!(
