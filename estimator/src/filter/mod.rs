@@ -492,6 +492,7 @@ impl<'m> Estimator<'m> {
         }
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
+        let swing = self.swing.swing();
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,
@@ -503,7 +504,7 @@ impl<'m> Estimator<'m> {
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
             in_range: q0 >= lo && q0 <= hi,
             in_envelope: self.window.count() <= calib.envelope_max_off,
-            swing_ok: self.swing.swing().is_none_or(|a| a >= calib.min_swing),
+            swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
         };
         StepOutput {
             t: self.t,
@@ -515,7 +516,7 @@ impl<'m> Estimator<'m> {
             sigma,
             trust: checks.verdict(),
             off_envelope: self.window.count(),
-            swing: self.swing.swing().unwrap_or(f32::NAN),
+            swing: swing.unwrap_or(f32::NAN),
         }
     }
 }

@@ -142,11 +142,11 @@ pub struct CheckFigures {
     pub flagged_by: Vec<(String, usize)>,
     /// Length within 2 `param_std` of the truth.
     pub covered: usize,
-    /// Length within 20% of the truth.
+    /// Length within [`CalibrateConfig::accurate`] (20%) of the truth.
     pub within_20_percent: usize,
-    /// Flagged although within 20% (false alarms).
+    /// Flagged although within it (false alarms).
     pub false_flags: usize,
-    /// More than 20% off and trusted.
+    /// Further off and trusted.
     pub wrong_trusted: usize,
 }
 
@@ -203,6 +203,13 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         std_floor: [0.0; PARAM_DIM],
         min_swing: 0.0,
     }
+}
+
+/// Whether the length estimate of `out` lies within the fraction
+/// `accurate` of the truth (what the swing check is set by and the check
+/// set's figures count).
+fn right(out: &StepOutput, truth: f64, accurate: f64) -> bool {
+    (f64::from(out.params[0]) - truth).abs() <= accurate * truth
 }
 
 /// The smallest swing the verdict trusts: among the `share` of `rollouts`
@@ -365,8 +372,7 @@ pub fn calibrate(
         // Set on the window's estimate: the long run's errors at small
         // swings reach further up (a check set by them flags 11% of the
         // check set rather than 7%, for 2 fewer wrong and trusted).
-        let wrong = !((f64::from(a.params[0]) - r.length).abs() < cfg.accurate * r.length);
-        swings.push((f64::from(a.swing), wrong));
+        swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
         off.push(f64::from(a.off_envelope.max(b.off_envelope)));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
         err_long.push(f64::from((b.coordinate[0] - truth).abs()));
@@ -416,7 +422,7 @@ pub fn calibrate(
     ) {
         let (a, b) = checkpoints(&m, &r.xs)?;
         for (fig, out) in check.iter_mut().zip([&a, &b]) {
-            fig.add(out, r.length);
+            fig.add(out, r.length, cfg.accurate);
         }
         done += 1;
         progress(done, total);
@@ -452,7 +458,7 @@ impl CheckFigures {
         }
     }
 
-    fn add(&mut self, out: &StepOutput, truth: f64) {
+    fn add(&mut self, out: &StepOutput, truth: f64, accurate: f64) {
         let est = f64::from(out.params[0]);
         self.rollouts += 1;
         self.flagged += usize::from(out.trust.is_untrusted());
@@ -460,7 +466,7 @@ impl CheckFigures {
             *n += usize::from(out.trust.reasons().contains(reason));
         }
         self.covered += usize::from((est - truth).abs() <= 2.0 * f64::from(out.param_std[0]));
-        let right = (est - truth).abs() <= 0.2 * truth;
+        let right = right(out, truth, accurate);
         self.within_20_percent += usize::from(right);
         self.false_flags += usize::from(right && out.trust.is_untrusted());
         self.wrong_trusted += usize::from(!right && out.trust.is_trusted());

@@ -182,13 +182,8 @@ mod tests {
         };
         // The protocol's: lengths 2 and 5 read reciprocally, no effect.
         let params = [cfg.length_spec(), cfg.effect_spec()];
-        let blob = parts.blob(
-            &norm,
-            &cfg,
-            filter,
-            params,
-            permissive(&CalibrateConfig::default(), [2.0, 5.0], &bits),
-        );
+        let trust = permissive(&CalibrateConfig::default(), [2.0, 5.0], &bits);
+        let blob = parts.blob(&norm, &cfg, filter, params, trust);
         let bytes = blob_bytes(&blob).unwrap();
         let back = Model::from_bytes(&bytes).unwrap();
         // Exactly the same numbers come back (the blob stores f32 bits),
@@ -223,13 +218,7 @@ mod tests {
         let mut drifting = f.clone();
         drifting[LATENT_DIM * AUG_DIM + LATENT_DIM] = 0.99;
         let parts = BlobParts::new(&enc, &dec, &drifting);
-        let blob = parts.blob(
-            &norm,
-            &cfg,
-            filter,
-            params,
-            permissive(&CalibrateConfig::default(), [2.0, 5.0], &bits),
-        );
+        let blob = parts.blob(&norm, &cfg, filter, params, trust);
         let bytes = blob_bytes(&blob).unwrap();
         assert_eq!(
             Model::from_bytes(&bytes).unwrap_err(),
