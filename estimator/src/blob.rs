@@ -21,6 +21,10 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
+//! Format 7 added the largest unevenness of the swing the verdict trusts
+//! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
+//! that the envelope does not see.
+//!
 //! Format 6 added the gravity the model was trained at ([`Body::g`]),
 //! which parameters the dynamics see only through it
 //! ([`ParamSpec::scales_with_g`]) and the smallest swing the verdict
@@ -76,7 +80,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 6;
+pub const FORMAT_VERSION: u16 = 7;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -517,6 +521,10 @@ pub struct TrustSpec<'a> {
     /// below it held-out rollouts read the length more than 20% off (0:
     /// every swing passes).
     pub min_swing: f32,
+    /// The largest unevenness of the swing that passes (how far the middle
+    /// of its range lies from zero, as a share of it: see
+    /// [`crate::trust`]; format 7).
+    pub max_unevenness: f32,
 }
 
 impl TrustSpec<'_> {
@@ -527,7 +535,8 @@ impl TrustSpec<'_> {
             && hi.is_finite()
             && lo <= hi
             && self.min_swing.is_finite()
-            && self.min_swing >= 0.0;
+            && self.min_swing >= 0.0
+            && self.max_unevenness >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
         if finite && stds {

@@ -28,6 +28,13 @@
 //!   one reads lengths 20 to 30% long from swings released near the
 //!   bottom of its training range, and nothing else in the verdict sees
 //!   it (the states lie inside the envelope).
+//! - [`Reason::UnevenSwing`]: the swing does not reach the same angle on
+//!   both sides (its unevenness, [`SwingWindow`], above the blob's
+//!   largest). The model is conservative and centred: friction lowers
+//!   each turning point, a torque or a sensor offset moves them all one
+//!   way. Weak friction leaves the states inside the envelope while the
+//!   length reads 20-30% long; the turning points show it within one
+//!   swing.
 //!
 //! The verdict is [`Trust::Trusted`] when no check fails and
 //! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
@@ -53,6 +60,9 @@ pub enum Reason {
     OutsideEnvelope,
     /// The swing is smaller than the model estimates accurately.
     SmallSwing,
+    /// The swing does not reach the same angle on both sides: friction, a
+    /// torque or a sensor offset, none of which the model knows.
+    UnevenSwing,
 }
 
 impl Reason {
@@ -63,6 +73,7 @@ impl Reason {
         Reason::OutsideRange,
         Reason::OutsideEnvelope,
         Reason::SmallSwing,
+        Reason::UnevenSwing,
     ];
 
     /// The reason in words (what `koopman estimate --json` writes as
@@ -74,6 +85,7 @@ impl Reason {
             Reason::OutsideRange => "parameter outside calibrated range",
             Reason::OutsideEnvelope => "state outside training envelope",
             Reason::SmallSwing => "swing below the accurate range",
+            Reason::UnevenSwing => "swing uneven: friction, torque or offset",
         }
     }
 }
@@ -88,6 +100,7 @@ impl Reason {
             Reason::OutsideRange => "outside_range",
             Reason::OutsideEnvelope => "outside_envelope",
             Reason::SmallSwing => "small_swing",
+            Reason::UnevenSwing => "uneven_swing",
         }
     }
 }
@@ -99,7 +112,7 @@ impl core::fmt::Display for Reason {
 }
 
 /// How many reasons there are.
-pub const REASONS: usize = 5;
+pub const REASONS: usize = 6;
 
 /// The failed checks, in the order of [`Reason::ALL`].
 pub type Reasons = Vec<Reason, REASONS>;
@@ -160,6 +173,8 @@ pub(crate) struct Checks {
     pub in_envelope: bool,
     /// The swing at least the calibrated smallest.
     pub swing_ok: bool,
+    /// The swing's unevenness at most the calibrated largest.
+    pub even: bool,
 }
 
 impl Checks {
@@ -174,6 +189,7 @@ impl Checks {
             self.in_range,
             self.in_envelope,
             self.swing_ok,
+            self.even,
         ];
         let mut reasons = Reasons::new();
         for (reason, ok) in Reason::ALL.iter().zip(passed) {
@@ -214,45 +230,121 @@ impl EnvelopeWindow {
     }
 }
 
-/// The swing: half the range of `theta` (largest less smallest) over the
-/// last [`WINDOW`] to 2 [`WINDOW`] measurements, from two blocks' extremes
-/// (the block being filled and the one before it), so that a decaying
-/// swing is seen decaying, and a sensor offset does not change it, with
-/// four floats of state.
+/// One block of measurements: the smallest and the largest angle, each
+/// with the size of the rate measured with it, and the largest rate.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Block {
+    /// `[theta, |theta_dot|]` at the smallest angle.
+    lo: [f32; 2],
+    /// `[theta, |theta_dot|]` at the largest angle.
+    hi: [f32; 2],
+    /// The largest `|theta_dot|`.
+    rate: f32,
+}
+
+impl Block {
+    fn first(theta: f32, rate: f32) -> Self {
+        let r = libm::fabsf(rate);
+        Block {
+            lo: [theta, r],
+            hi: [theta, r],
+            rate: r,
+        }
+    }
+
+    fn add(&mut self, theta: f32, rate: f32) {
+        let r = libm::fabsf(rate);
+        if theta < self.lo[0] {
+            self.lo = [theta, r];
+        }
+        if theta > self.hi[0] {
+            self.hi = [theta, r];
+        }
+        self.rate = self.rate.max(r);
+    }
+
+    /// The two blocks as one.
+    fn merge(&self, other: &Block) -> Block {
+        Block {
+            lo: if other.lo[0] < self.lo[0] {
+                other.lo
+            } else {
+                self.lo
+            },
+            hi: if other.hi[0] > self.hi[0] {
+                other.hi
+            } else {
+                self.hi
+            },
+            rate: self.rate.max(other.rate),
+        }
+    }
+}
+
+/// The swing over the last [`WINDOW`] to 2 [`WINDOW`] measurements, from
+/// two blocks' extremes (the block being filled and the one before it),
+/// with ten floats of state:
+/// - its size: half the range of `theta` (largest less smallest), so that
+///   a decaying swing is seen decaying and a sensor offset does not
+///   change it;
+/// - its unevenness: how far the middle of that range lies from zero, as
+///   a share of the half range, `|hi + lo| / (hi - lo)`. A conservative
+///   swing about the vertical reaches the same angle on both sides;
+///   friction lowers each turning point below the one before, a torque or
+///   a sensor offset moves both the same way. It is measured only when
+///   both extremes are turning points, where the rate measured with each
+///   is at most [`SwingWindow::TURN`] of the largest: a range that ends at
+///   the edge of the window mid-swing says nothing about the swing.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct SwingWindow {
-    /// `[min, max]` of the block being filled.
-    current: [f32; 2],
-    /// `[min, max]` of the block before it (equal to `current` until
-    /// there is one).
-    previous: [f32; 2],
+    /// The block being filled.
+    current: Block,
+    /// The block before it (equal to `current` until there is one).
+    previous: Block,
     /// Measurements in the current block.
     n: u16,
 }
 
 impl SwingWindow {
-    /// Records one measured angle.
-    pub fn push(&mut self, theta: f32) {
+    /// The largest rate at an extreme, as a share of the largest rate in
+    /// the window, for the extreme to count as a turning point. Sampled
+    /// `k` times a period, the sample nearest a turning point lies within
+    /// `pi / k` of it in phase, where the rate is at most `sin(pi / k)` of
+    /// its largest: 0.26 at 12 samples a period, the fewest a tracked
+    /// swing has. An extreme that is not a turning point passes only
+    /// within 17 degrees of phase of one, where the angle is within
+    /// `1 - cos(17 deg)` = 4.5% of the swing: an unevenness of at most
+    /// 0.023 (half that) from it alone.
+    pub const TURN: f32 = 0.3;
+
+    /// Records one measured angle and rate.
+    pub fn push(&mut self, theta: f32, rate: f32) {
         if self.n == 0 {
-            self.current = [theta, theta];
+            self.current = Block::first(theta, rate);
             self.previous = self.current;
         } else if usize::from(self.n) >= WINDOW {
             self.previous = self.current;
-            self.current = [theta, theta];
+            self.current = Block::first(theta, rate);
             self.n = 0;
         }
-        let [lo, hi] = &mut self.current;
-        *lo = lo.min(theta);
-        *hi = hi.max(theta);
+        self.current.add(theta, rate);
         self.n += 1;
     }
 
     /// The swing, or `None` before any angle was measured (a filter fed
     /// encoded measurements only).
     pub fn swing(&self) -> Option<f32> {
-        let lo = self.current[0].min(self.previous[0]);
-        let hi = self.current[1].max(self.previous[1]);
-        (self.n > 0).then_some(0.5 * (hi - lo))
+        let w = self.current.merge(&self.previous);
+        (self.n > 0).then_some(0.5 * (w.hi[0] - w.lo[0]))
+    }
+
+    /// The unevenness, or `None` where it is not measured: nothing
+    /// measured, no range, or an extreme that is not a turning point.
+    pub fn unevenness(&self) -> Option<f32> {
+        let w = self.current.merge(&self.previous);
+        let turns = w.lo[1] <= Self::TURN * w.rate && w.hi[1] <= Self::TURN * w.rate;
+        let range = w.hi[0] - w.lo[0];
+        (self.n > 0 && turns && range > 0.0).then(|| libm::fabsf(w.hi[0] + w.lo[0]) / range)
     }
 }
 
@@ -379,21 +471,72 @@ mod verdict_tests {
         assert_eq!(w.swing(), None);
         // A swing of 1 about an offset of 0.3, for three windows.
         for k in 0..3 * WINDOW {
-            w.push(0.3 + libm::cosf(k as f32 * 0.5));
+            let ph = k as f32 * 0.5;
+            w.push(0.3 + libm::cosf(ph), -libm::sinf(ph));
         }
         let a = w.swing().unwrap();
         assert!((a - 1.0).abs() < 1e-3, "{a}");
         // Then a swing of 0.2: after one more block it still remembers the
         // last big one, after two it has forgotten it.
         for k in 0..WINDOW {
-            w.push(0.2 * libm::cosf(k as f32 * 0.5));
+            let ph = k as f32 * 0.5;
+            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph));
         }
         assert!(w.swing().unwrap() > 0.5);
         for k in 0..WINDOW {
-            w.push(0.2 * libm::cosf(k as f32 * 0.5));
+            let ph = k as f32 * 0.5;
+            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph));
         }
         let a = w.swing().unwrap();
         assert!((a - 0.2).abs() < 1e-3, "{a}");
+    }
+
+    /// The unevenness is the middle of the range over its half, measured
+    /// only between turning points: a centred swing reads 0, one about
+    /// an offset of 0.1 reads 0.1 / 0.5, a swing losing a tenth of its
+    /// size each half period reads about 0.05, and a range cut off
+    /// mid-swing (a release not from rest, seen for less than half a
+    /// period) is not measured.
+    #[test]
+    fn unevenness_is_read_between_turning_points() {
+        // 20 samples a period.
+        let step = core::f32::consts::PI / 10.0;
+        let run = |f: &dyn Fn(f32) -> [f32; 2], n: usize| {
+            let mut w = SwingWindow::default();
+            for k in 0..n {
+                let [a, b] = f(k as f32 * step);
+                w.push(a, b);
+            }
+            w
+        };
+        let centred = run(&|p| [0.5 * libm::cosf(p), -0.5 * libm::sinf(p)], WINDOW);
+        assert!(centred.unevenness().unwrap() < 1e-5);
+        let offset = run(
+            &|p| [0.1 + 0.5 * libm::cosf(p), -0.5 * libm::sinf(p)],
+            WINDOW,
+        );
+        assert!((offset.unevenness().unwrap() - 0.2).abs() < 1e-4);
+        // The size falls by 10% per half period (pi): e^(-d pi) = 0.9.
+        let d = -libm::logf(0.9) / core::f32::consts::PI;
+        let decaying = run(
+            &|p| {
+                let a = 0.5 * libm::expf(-d * p);
+                [a * libm::cosf(p), -a * (libm::sinf(p) + d * libm::cosf(p))]
+            },
+            WINDOW,
+        );
+        // The range runs from the first turning point (0.5) to the first
+        // on the other side (-0.45): (0.5 - 0.45) / (0.5 + 0.45).
+        let expect = 0.05 / 0.95;
+        assert!((decaying.unevenness().unwrap() - expect).abs() < 0.01);
+        // Released at 0.3 rad moving fast, seen for a quarter period: the
+        // range ends mid-swing.
+        let cut = run(
+            &|p| [0.5 * libm::sinf(p + 0.6), 0.5 * libm::cosf(p + 0.6)],
+            4,
+        );
+        assert_eq!(cut.unevenness(), None);
+        assert_eq!(SwingWindow::default().unevenness(), None);
     }
 
     /// Every failed check is named, in order; none failed is trusted.
@@ -406,6 +549,7 @@ mod verdict_tests {
             in_range: true,
             in_envelope: true,
             swing_ok: true,
+            even: true,
         };
         assert_eq!(all_ok.verdict(), Trust::Trusted);
         assert_eq!(
@@ -432,6 +576,7 @@ mod verdict_tests {
             in_range: false,
             in_envelope: false,
             swing_ok: false,
+            even: false,
         };
         assert_eq!(none.verdict().reasons(), &Reason::ALL);
     }

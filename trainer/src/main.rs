@@ -35,7 +35,7 @@ enum Cmd {
     /// its burnpack with a JSON sidecar.
     Export(cli::export::Args),
     /// Calibrates a blob's trust verdict on held-out rollouts (and upgrades
-    /// a blob of format 5).
+    /// a blob of format 6).
     Calibrate(cli::calibrate::Args),
     /// Runs the on-device estimator over each rollout of a CSV.
     Estimate(cli::estimate::Args),

@@ -117,6 +117,10 @@ pub struct StepOutput {
     /// [`WINDOW`](crate::WINDOW) to 2 [`WINDOW`](crate::WINDOW)
     /// measurements (NaN when only encoded measurements were given).
     pub swing: f32,
+    /// Its unevenness: how far the middle of that range lies from zero,
+    /// as a share of the swing (`None` where it is not measured: see
+    /// [`crate::trust`]).
+    pub unevenness: Option<f32>,
 }
 
 /// The estimator: a fixed-size filter state over one model.
@@ -445,7 +449,8 @@ impl<'m> Estimator<'m> {
         let Some((raw, x_n)) = x else {
             return;
         };
-        self.swing.push(raw.first().copied().unwrap_or(0.0));
+        let [theta, rate] = *raw;
+        self.swing.push(theta, rate);
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
         let q = tail(&self.g).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
@@ -493,6 +498,7 @@ impl<'m> Estimator<'m> {
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
         let swing = self.swing.swing();
+        let unevenness = self.swing.unevenness();
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,
@@ -505,6 +511,7 @@ impl<'m> Estimator<'m> {
             in_range: q0 >= lo && q0 <= hi,
             in_envelope: self.window.count() <= calib.envelope_max_off,
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
+            even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
         };
         StepOutput {
             t: self.t,
@@ -517,6 +524,7 @@ impl<'m> Estimator<'m> {
             trust: checks.verdict(),
             off_envelope: self.window.count(),
             swing: swing.unwrap_or(f32::NAN),
+            unevenness,
         }
     }
 }

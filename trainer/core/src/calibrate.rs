@@ -25,6 +25,9 @@
 //!    [`CalibrateConfig::swing_share`] of rollouts with the smallest
 //!    swings, just above the largest whose length is
 //!    [`CalibrateConfig::accurate`] or more off after the window.
+//!    The largest trusted unevenness of the swing: the conformal quantile
+//!    at `1 - unevenness_alpha` of the larger of the two checkpoints', or
+//!    [`CalibrateConfig::unevenness_floor`], whichever is larger.
 //! 3. **check** (as many again): what the calibrated blob does on rollouts
 //!    it has not seen: the false-flag rate per check and the coverage of
 //!    the length, after the window and after the long run. These are the
@@ -82,6 +85,15 @@ pub struct CalibrateConfig {
     /// the smallest trusted swing is sought: the most the swing check
     /// may flag.
     pub swing_share: f64,
+    /// Share of in-distribution rollouts the unevenness check may flag.
+    pub unevenness_alpha: f64,
+    /// The least largest unevenness: the window's own error where an
+    /// extreme lies near a turning point rather than at one (up to 0.023,
+    /// `SwingWindow::TURN` in the estimator) and tracking noise of 0.01 rad
+    /// on a swing of 0.5 rad (0.02) together. The undamped held-out
+    /// rollouts read about 0.003 (the sampled turning points); a threshold
+    /// set by them alone would flag the noise of every real recording.
+    pub unevenness_floor: f64,
 }
 
 impl Default for CalibrateConfig {
@@ -101,6 +113,8 @@ impl Default for CalibrateConfig {
             coverage: 0.92,
             accurate: 0.2,
             swing_share: 0.1,
+            unevenness_alpha: 0.01,
+            unevenness_floor: 0.05,
         }
     }
 }
@@ -125,6 +139,12 @@ pub struct Calibration {
     pub std_floor: f32,
     /// The smallest swing that passes, rad (0: all pass).
     pub min_swing: f32,
+    /// The calibration set's unevenness quantile at `1 - unevenness_alpha`
+    /// (after the window and after the long run, where measured).
+    pub unevenness_quantile: f32,
+    /// The largest unevenness that passes: that quantile or the floor,
+    /// whichever is larger.
+    pub max_unevenness: f32,
     /// On the check set after the window, and after the long run.
     pub check: [CheckFigures; 2],
 }
@@ -202,6 +222,7 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         std_scale: [1.0; PARAM_DIM],
         std_floor: [0.0; PARAM_DIM],
         min_swing: 0.0,
+        max_unevenness: f32::MAX,
     }
 }
 
@@ -366,6 +387,7 @@ pub fn calibrate(
     );
     let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
     let mut swings = vec![];
+    let mut uneven = vec![];
     for r in &cal {
         let (a, b) = checkpoints(&m, &r.xs)?;
         let truth = spec.coordinate(r.length as f32);
@@ -374,6 +396,9 @@ pub fn calibrate(
         // check set rather than 7%, for 2 fewer wrong and trusted).
         swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
         off.push(f64::from(a.off_envelope.max(b.off_envelope)));
+        // Not measured (no two turning points yet): passes.
+        let u = |o: &StepOutput| f64::from(o.unevenness.unwrap_or(0.0));
+        uneven.push(u(&a).max(u(&b)));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
         err_long.push(f64::from((b.coordinate[0] - truth).abs()));
         win.push((
@@ -399,6 +424,8 @@ pub fn calibrate(
         .collect();
     let std_scale = conformal(&mut scales, cfg.coverage).max(1.0);
     let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
+    let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
+    let max_unevenness = unevenness_quantile.max(cfg.unevenness_floor as f32);
 
     // 3. The calibrated blob, and what it does on the check set.
     let mut calibrated = base;
@@ -409,6 +436,7 @@ pub fn calibrate(
         std_scale: [std_scale as f32, 1.0],
         std_floor: [std_floor as f32, 0.0],
         min_swing,
+        max_unevenness,
     };
     let bytes = blob_bytes(&calibrated)?;
     let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -436,6 +464,8 @@ pub fn calibrate(
         std_scale: std_scale as f32,
         std_floor: std_floor as f32,
         min_swing,
+        unevenness_quantile,
+        max_unevenness,
         check,
     };
     Ok((bytes, report))

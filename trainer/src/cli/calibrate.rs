@@ -1,13 +1,13 @@
 //! `koopman calibrate`: sets a blob's trust verdict on held-out rollouts
 //! (`trainer_core::calibrate`) and records how in the JSON beside it. A
-//! blob of the previous format (5, without the training gravity) is
+//! blob of the previous format (6, without the unevenness check) is
 //! upgraded: its model, filter and schedule are kept byte for byte.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use estimator::blob::{
-    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, FilterSpec, Header, ParamSpec, Reading,
+    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, FilterSpec, Header, ParamSpec,
     TrustSpec,
 };
 use estimator::{PARAM_DIM, STATE_DIM};
@@ -20,7 +20,7 @@ use trainer_core::io::write_atomic;
 /// figures in the JSON beside it.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The blob (format 6, or 5 to upgrade).
+    /// The blob (format 7, or 6 to upgrade).
     blob: PathBuf,
     /// Output path (default: over the input).
     #[arg(long)]
@@ -28,45 +28,33 @@ pub struct Args {
     /// Seed of the held-out sets (map, calibration, check: seed, +1, +2).
     #[arg(long, default_value_t = CalibrateConfig::default().seed)]
     seed: u64,
-    /// Gravity a format-5 blob was trained at, m/s^2 (default: `config.g`
-    /// in the JSON beside it).
-    #[arg(long)]
-    g: Option<f64>,
 }
 
-/// A parameter as format 5 wrote it: without `scales_with_g`.
+/// The trust section of format 6: without `max_unevenness`.
 #[derive(Deserialize)]
-struct ParamSpecV5<'a> {
-    name: &'a str,
-    declared: bool,
-    train_range: [f32; 2],
-    reading: Reading,
-}
-
-/// The trust section of format 5: without `min_swing`.
-#[derive(Deserialize)]
-struct TrustSpecV5<'a> {
+struct TrustSpecV6<'a> {
     #[serde(borrow)]
     envelope: Envelope<'a>,
     envelope_max_off: u16,
     range: [f32; 2],
     std_scale: [f32; PARAM_DIM],
     std_floor: [f32; PARAM_DIM],
+    min_swing: f32,
 }
 
-/// The body of format 5: format 6's without the gravity, `scales_with_g`
-/// and `min_swing`.
+/// The body of format 6: format 7's without `max_unevenness`.
 #[derive(Deserialize)]
-struct BodyV5<'a> {
+struct BodyV6<'a> {
     dt: f32,
+    g: f32,
     activation: Activation,
     norm_mu: [f32; STATE_DIM],
     norm_s: [f32; STATE_DIM],
     #[serde(borrow)]
-    params: [ParamSpecV5<'a>; PARAM_DIM],
+    params: [ParamSpec<'a>; PARAM_DIM],
     filter: FilterSpec,
     #[serde(borrow)]
-    trust: TrustSpecV5<'a>,
+    trust: TrustSpecV6<'a>,
     #[serde(borrow)]
     _pad: &'a [u8],
     #[serde(borrow)]
@@ -74,87 +62,56 @@ struct BodyV5<'a> {
 }
 
 #[derive(Deserialize)]
-struct BlobV5<'a> {
+struct BlobV6<'a> {
     _header: Header,
     #[serde(borrow)]
-    body: BodyV5<'a>,
+    body: BodyV6<'a>,
 }
 
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
-/// The training gravity of a format-5 blob: `--g`, else the run's config
-/// in the JSON beside it (`config.g`).
-fn training_g(g: Option<f64>, path: &Path) -> Result<f64> {
-    if let Some(g) = g {
-        return Ok(g);
-    }
-    let sidecar = path.with_extension("json");
-    std::fs::read_to_string(&sidecar)
-        .ok()
-        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
-        .and_then(|v| v["config"]["g"].as_f64())
-        .with_context(|| {
-            format!(
-                "{}: a format-5 blob does not say the gravity it was trained at, and {} has no config.g: give --g",
-                path.display(),
-                sidecar.display()
-            )
-        })
-}
-
-/// The blob's bytes in the current format: as they are, or a format-5
-/// blob with the training gravity added (its lengths scale with g) and
-/// every swing trusted, to be calibrated again by the caller.
-fn current_format(bytes: &[u8], path: &Path, g: Option<f64>) -> Result<Vec<u8>> {
+/// The blob's bytes in the current format: as they are, or a format-6
+/// blob with every unevenness trusted, to be calibrated again by the
+/// caller.
+fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
     let version = postcard::from_bytes::<Header>(bytes)
         .ok()
         .map(|h| h.version);
-    if Blob::from_bytes(bytes).is_ok() || version != Some(5) {
+    if Blob::from_bytes(bytes).is_ok() || version != Some(6) {
         // Current, or broken in a way the reader names below.
         Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         return Ok(bytes.to_vec());
     }
-    let (old, rest) = postcard::take_from_bytes_crc32::<BlobV5>(bytes, CRC.digest())
-        .map_err(|e| anyhow::anyhow!("{}: not a readable format-5 blob: {e}", path.display()))?;
+    let (old, rest) = postcard::take_from_bytes_crc32::<BlobV6>(bytes, CRC.digest())
+        .map_err(|e| anyhow::anyhow!("{}: not a readable format-6 blob: {e}", path.display()))?;
     anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
-    let g = training_g(g, path)?;
     let b = old.body;
-    // The length (the only parameter format 5 carried that scales with g)
-    // is the first.
-    let params: [ParamSpec; PARAM_DIM] = std::array::from_fn(|k| {
-        let p = &b.params[k];
-        ParamSpec {
-            name: p.name,
-            declared: p.declared,
-            train_range: p.train_range,
-            reading: p.reading,
-            scales_with_g: k == 0 && p.name == "length",
-        }
-    });
+    let t = b.trust;
     let blob = Blob {
         header: Header::CURRENT,
         body: Body {
             dt: b.dt,
-            g: g as f32,
+            g: b.g,
             activation: b.activation,
             norm_mu: b.norm_mu,
             norm_s: b.norm_s,
-            params,
+            params: b.params,
             filter: b.filter,
             trust: TrustSpec {
-                envelope: b.trust.envelope,
-                envelope_max_off: b.trust.envelope_max_off,
-                range: b.trust.range,
-                std_scale: b.trust.std_scale,
-                std_floor: b.trust.std_floor,
-                min_swing: 0.0,
+                envelope: t.envelope,
+                envelope_max_off: t.envelope_max_off,
+                range: t.range,
+                std_scale: t.std_scale,
+                std_floor: t.std_floor,
+                min_swing: t.min_swing,
+                max_unevenness: f32::MAX,
             },
             pad: &[],
             weights: b.weights,
         },
     };
     eprintln!(
-        "{}: format 5, upgraded to {FORMAT_VERSION} with g = {g} (model, filter and schedule unchanged)",
+        "{}: format 6, upgraded to {FORMAT_VERSION} (model, filter and schedule unchanged)",
         path.display()
     );
     blob_bytes(&blob)
@@ -163,7 +120,7 @@ fn current_format(bytes: &[u8], path: &Path, g: Option<f64>) -> Result<Vec<u8>> 
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     let bytes = std::fs::read(&a.blob).with_context(|| a.blob.display().to_string())?;
-    let bytes = current_format(&bytes, &a.blob, a.g)?;
+    let bytes = current_format(&bytes, &a.blob)?;
     let cfg = CalibrateConfig {
         seed: a.seed,
         ..CalibrateConfig::default()
@@ -183,7 +140,7 @@ pub fn run(a: Args) -> Result<()> {
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
     println!(
-        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad",
+        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}",
         out.display(),
         out_bytes.len(),
         report.envelope_max_off,
@@ -192,7 +149,8 @@ pub fn run(a: Args) -> Result<()> {
         report.range[1],
         report.std_scale,
         report.std_floor,
-        report.min_swing
+        report.min_swing,
+        report.max_unevenness
     );
     for c in &report.check {
         println!(
