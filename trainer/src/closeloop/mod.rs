@@ -10,7 +10,9 @@
 //!    the data: the offset found is subtracted from the angle.
 //! 4. Train the declared KLM around the first parts (lengths on a grid of
 //!    5 within [`LENGTH_MARGIN`] of the rods the swings' frequencies give, initial
-//!    angles covering their amplitudes, the given `g` and `dt`).
+//!    angles covering their amplitudes, the given `g` and `dt`; rollouts
+//!    of two training windows, so that the windows start at every phase
+//!    of the swing, as the held-out forecasts do).
 //! 5. Add one dynamic effect as the filter's second parameter, its
 //!    coefficient drawn from `c` within [`EFFECT_MARGIN`]: the one named in the most
 //!    recordings, ties broken by the larger summed `t` (the filter carries
@@ -52,7 +54,7 @@ pub const FIT_SHARE: f64 = 2.0 / 3.0;
 /// well under 1% (`docs/diagnosis.md`), and a learned linear model is
 /// most accurate over a narrow range, where the length changes the
 /// frequency least (the parameter enters its dynamics additively).
-pub const LENGTH_MARGIN: f64 = 0.05;
+pub const LENGTH_MARGIN: f64 = 0.01;
 
 /// Half-width of the added effect's training range around the
 /// coefficients the swings give, as a share. Within it the filter
@@ -409,6 +411,9 @@ pub fn close_loop(
     cfg.iterations = opts.iterations;
     cfg.lengths = lengths.clone();
     cfg.rollouts_per_length = 80;
+    // Windows from every phase of the swing: the held-out forecasts start
+    // wherever a window of measurements ends.
+    cfg.rollout_steps = 2 * cfg.window;
     cfg.g = opts.g;
     cfg.dt = dt;
     cfg.theta0 = theta0;

@@ -4,7 +4,7 @@ use estimator::blob::{Activation, ParamSpec, Reading};
 use serde::{Deserialize, Serialize};
 use trainer_core::data::RolloutMeta;
 use trainer_core::physics::EffectRange;
-use trainer_core::protocol::{DT, G, THETA0, TRAIN_LENGTHS};
+use trainer_core::protocol::{DT, G, ROLLOUT_LEN, THETA0, TRAIN_LENGTHS};
 
 /// Which model a run trains (the protocol's three).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
@@ -45,6 +45,11 @@ pub struct TrainConfig {
     pub prior_std_effect: f64,
     /// Rollouts per training length.
     pub rollouts_per_length: usize,
+    /// Measurements per training rollout, each released from rest (the
+    /// protocol's 128). Longer than [`TrainConfig::window`], the windows
+    /// start at every phase of the swing, not only at a turning point: a
+    /// model that forecasts from any measured state needs them.
+    pub rollout_steps: usize,
     /// Training window, observations (the protocol's rollouts have 128; the
     /// paper used 64; we train on whole rollouts for the 127-step horizon).
     pub window: usize,
@@ -96,6 +101,7 @@ impl Default for TrainConfig {
             effect: None,
             prior_std_effect: 0.0,
             rollouts_per_length: 200,
+            rollout_steps: ROLLOUT_LEN,
             window: 128,
             batch: 32,
             iterations: 2000,

@@ -107,6 +107,7 @@ pub fn training_data(cfg: &TrainConfig) -> Dataset {
         data::Physics {
             g: cfg.g,
             dt: cfg.dt,
+            steps: cfg.rollout_steps,
         },
         cfg.theta0,
         cfg.effect.as_ref(),

@@ -17,11 +17,17 @@ pub struct Physics {
     pub g: f64,
     /// Observation interval, s.
     pub dt: f64,
+    /// Measurements per rollout.
+    pub steps: usize,
 }
 
 impl Physics {
-    /// The protocol's: `g = 10`, `dt = 0.05`.
-    pub const PROTOCOL: Physics = Physics { g: G, dt: DT };
+    /// The protocol's: `g = 10`, `dt = 0.05`, 128 measurements.
+    pub const PROTOCOL: Physics = Physics {
+        g: G,
+        dt: DT,
+        steps: ROLLOUT_LEN,
+    };
 }
 
 /// One rollout to simulate: length, initial angle, its effects.
@@ -35,8 +41,8 @@ fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
         let mut p = Pendulum::new(length);
         p.g = physics.g;
         p.effects = effects.clone();
-        let xs = p.rollout([theta0, 0.0], ROLLOUT_LEN, dt);
-        let t = (0..ROLLOUT_LEN).map(|k| k as f64 * dt).collect();
+        let xs = p.rollout([theta0, 0.0], physics.steps, dt);
+        let t = (0..physics.steps).map(|k| k as f64 * dt).collect();
         rollouts.push(Rollout {
             id: id as u32,
             t,
@@ -135,7 +141,11 @@ mod tests {
     #[test]
     fn constants_and_a_varied_effect_reach_the_data() {
         let varied = EffectRange::parse("viscous:0.1..0.3").unwrap();
-        let physics = Physics { g: 9.81, dt: 0.02 };
+        let physics = Physics {
+            g: 9.81,
+            dt: 0.02,
+            steps: ROLLOUT_LEN,
+        };
         let ds = training_set_with(3, &[0.13], 6, &[], physics, [0.5, 1.0], Some(&varied));
         assert_eq!(ds.sidecar.dt, 0.02);
         assert!((ds.rollouts[0].t[1] - 0.02).abs() < 1e-12);
