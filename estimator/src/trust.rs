@@ -331,20 +331,31 @@ impl SwingWindow {
         self.n += 1;
     }
 
-    /// The swing, or `None` before any angle was measured (a filter fed
-    /// encoded measurements only).
-    pub fn swing(&self) -> Option<f32> {
-        let w = self.current.merge(&self.previous);
-        (self.n > 0).then_some(0.5 * (w.hi[0] - w.lo[0]))
-    }
-
-    /// The unevenness, or `None` where it is not measured: nothing
-    /// measured, no range, or an extreme that is not a turning point.
-    pub fn unevenness(&self) -> Option<f32> {
+    /// The swing and its unevenness from one merge of the two blocks:
+    /// `None` before any angle was measured (a filter fed encoded
+    /// measurements only); the unevenness `None` also where there is no
+    /// range or an extreme is not a turning point.
+    pub fn read(&self) -> Option<(f32, Option<f32>)> {
+        if self.n == 0 {
+            return None;
+        }
         let w = self.current.merge(&self.previous);
         let turns = w.lo[1] <= Self::TURN * w.rate && w.hi[1] <= Self::TURN * w.rate;
         let range = w.hi[0] - w.lo[0];
-        (self.n > 0 && turns && range > 0.0).then(|| libm::fabsf(w.hi[0] + w.lo[0]) / range)
+        let uneven = (turns && range > 0.0).then(|| libm::fabsf(w.hi[0] + w.lo[0]) / range);
+        Some((0.5 * range, uneven))
+    }
+
+    /// The swing alone ([`SwingWindow::read`]).
+    #[cfg(test)]
+    pub fn swing(&self) -> Option<f32> {
+        self.read().map(|r| r.0)
+    }
+
+    /// The unevenness alone ([`SwingWindow::read`]).
+    #[cfg(test)]
+    pub fn unevenness(&self) -> Option<f32> {
+        self.read().and_then(|r| r.1)
     }
 }
 

@@ -497,8 +497,10 @@ impl<'m> Estimator<'m> {
         }
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
-        let swing = self.swing.swing();
-        let unevenness = self.swing.unevenness();
+        let (swing, unevenness) = match self.swing.read() {
+            Some((s, u)) => (Some(s), u),
+            None => (None, None),
+        };
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,
