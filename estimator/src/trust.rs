@@ -35,6 +35,13 @@
 //!   way. Weak friction leaves the states inside the envelope while the
 //!   length reads 20-30% long; the turning points show it within one
 //!   swing.
+//! - [`Reason::GravityUndeclared`]: a parameter the dynamics see only
+//!   through `g / p` (a pendulum's length) is reported while the system's
+//!   gravity was never declared ([`crate::Estimator::with_gravity`],
+//!   [`crate::Estimator::at_trained_gravity`]). A pendulum of length `L`
+//!   at `g` moves exactly as one of `L g_0 / g` at the blob's `g_0`: no
+//!   check on the measurements can tell them apart, so the length is
+//!   only as right as the gravity it is read at.
 //!
 //! The verdict is [`Trust::Trusted`] when no check fails and
 //! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
@@ -63,6 +70,9 @@ pub enum Reason {
     /// The swing does not reach the same angle on both sides: friction, a
     /// torque or a sensor offset, none of which the model knows.
     UnevenSwing,
+    /// The system's gravity was never declared: a length is read at the
+    /// blob's training gravity, which the motion cannot confirm.
+    GravityUndeclared,
 }
 
 impl Reason {
@@ -74,6 +84,7 @@ impl Reason {
         Reason::OutsideEnvelope,
         Reason::SmallSwing,
         Reason::UnevenSwing,
+        Reason::GravityUndeclared,
     ];
 
     /// The reason in words (what `koopman estimate --json` writes as
@@ -86,6 +97,7 @@ impl Reason {
             Reason::OutsideEnvelope => "state outside training envelope",
             Reason::SmallSwing => "swing below the accurate range",
             Reason::UnevenSwing => "swing uneven: friction, torque or offset",
+            Reason::GravityUndeclared => "g not declared: length read at the blob's g",
         }
     }
 }
@@ -101,6 +113,7 @@ impl Reason {
             Reason::OutsideEnvelope => "outside_envelope",
             Reason::SmallSwing => "small_swing",
             Reason::UnevenSwing => "uneven_swing",
+            Reason::GravityUndeclared => "g_undeclared",
         }
     }
 }
@@ -112,7 +125,7 @@ impl core::fmt::Display for Reason {
 }
 
 /// How many reasons there are.
-pub const REASONS: usize = 6;
+pub const REASONS: usize = 7;
 
 /// The failed checks, in the order of [`Reason::ALL`].
 pub type Reasons = Vec<Reason, REASONS>;
@@ -175,6 +188,8 @@ pub(crate) struct Checks {
     pub swing_ok: bool,
     /// The swing's unevenness at most the calibrated largest.
     pub even: bool,
+    /// Gravity declared, or no parameter read through it.
+    pub gravity_known: bool,
 }
 
 impl Checks {
@@ -190,6 +205,7 @@ impl Checks {
             self.in_envelope,
             self.swing_ok,
             self.even,
+            self.gravity_known,
         ];
         let mut reasons = Reasons::new();
         for (reason, ok) in Reason::ALL.iter().zip(passed) {
@@ -561,6 +577,7 @@ mod verdict_tests {
             in_envelope: true,
             swing_ok: true,
             even: true,
+            gravity_known: true,
         };
         assert_eq!(all_ok.verdict(), Trust::Trusted);
         assert_eq!(
@@ -588,6 +605,7 @@ mod verdict_tests {
             in_envelope: false,
             swing_ok: false,
             even: false,
+            gravity_known: false,
         };
         assert_eq!(none.verdict().reasons(), &Reason::ALL);
     }

@@ -30,7 +30,7 @@ fn held_out_false_flags_and_coverage() {
         let length: f64 = rng.random_range(2.0..=5.0);
         let theta0 = rng.random_range(THETA0[0]..=THETA0[1]);
         let xs = states_f32(&Pendulum::new(length).rollout([theta0, 0.0], STEPS, DT));
-        let mut est = Estimator::new(&m);
+        let mut est = Estimator::new(&m).at_trained_gravity();
         for (n, x) in xs.iter().enumerate() {
             let out = est.step(x).unwrap();
             let at = match n + 1 {

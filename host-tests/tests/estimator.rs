@@ -247,7 +247,7 @@ fn out_of_distribution_lengths_are_flagged() {
     let verdict = |l: f64| {
         (0..10)
             .filter(|&k| {
-                let mut est = Estimator::new(&m);
+                let mut est = Estimator::new(&m).at_trained_gravity();
                 let mut last = None;
                 for x in &rollout(l, k)[..WINDOW] {
                     last = Some(est.step(x).unwrap());
@@ -283,7 +283,7 @@ fn a_non_physical_length_is_never_trusted() {
                 WINDOW,
                 trainer_core::protocol::DT,
             );
-            let mut est = Estimator::new(&m);
+            let mut est = Estimator::new(&m).at_trained_gravity();
             for x in &xs {
                 let out = est.step(&[x[0] as f32, x[1] as f32]).unwrap();
                 let length = out.params[0];
@@ -477,7 +477,7 @@ fn a_declared_gravity_scales_the_length_only() {
         .iter()
         .map(|x| [x[0] as f32, x[1] as f32])
         .collect();
-    let plain = estimator::filter::run(&mut Estimator::new(&m), &xs).unwrap();
+    let plain = estimator::filter::run(&mut Estimator::new(&m).at_trained_gravity(), &xs).unwrap();
     let mut declared = Estimator::new(&m).with_gravity(9.81).unwrap();
     let out = estimator::filter::run(&mut declared, &xs).unwrap();
     let ratio = 9.81f32 / 10.0;
@@ -500,6 +500,15 @@ fn a_declared_gravity_scales_the_length_only() {
     declared.reset();
     let again = estimator::filter::run(&mut declared, &xs).unwrap();
     assert_eq!(again.params, out.params);
+    assert_eq!(again.trust, out.trust);
+    // Never declared: the same estimate at the blob's g, and the verdict
+    // says the gravity is unknown (the motion cannot tell it).
+    let blind = estimator::filter::run(&mut Estimator::new(&m), &xs).unwrap();
+    assert_eq!(blind.params, plain.params);
+    assert!(!plain.trust.reasons().contains(&Reason::GravityUndeclared));
+    let mut expected: Vec<Reason> = plain.trust.reasons().to_vec();
+    expected.push(Reason::GravityUndeclared);
+    assert_eq!(blind.trust.reasons(), &expected[..], "{:?}", blind.trust);
 }
 
 /// Weak Coulomb friction leaves the swing on the training envelope while
@@ -520,7 +529,7 @@ fn friction_that_lowers_the_turning_points_is_named() {
             .iter()
             .map(|x| [x[0] as f32, x[1] as f32])
             .collect();
-        estimator::filter::run(&mut Estimator::new(&m), &xs).unwrap()
+        estimator::filter::run(&mut Estimator::new(&m).at_trained_gravity(), &xs).unwrap()
     };
     let mut p = Pendulum::new(4.27);
     let clean = run(&p);

@@ -204,8 +204,11 @@ fn firmware_in_qemu_matches_the_host() {
     for (id, xs) in &rollouts {
         // The firmware's order: on the gain schedule, then without it.
         for (mode, mut est) in [
-            ("scheduled", Estimator::new(&model)),
-            ("recursive", Estimator::without_schedule(&model)),
+            ("scheduled", Estimator::new(&model).at_trained_gravity()),
+            (
+                "recursive",
+                Estimator::without_schedule(&model).at_trained_gravity(),
+            ),
         ] {
             for x in xs {
                 let h = est.step(x).unwrap();

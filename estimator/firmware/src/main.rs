@@ -270,8 +270,8 @@ fn run(line: &mut Line) -> bool {
     // with the covariance recursion at every update (what runs after the
     // schedule's last update).
     let modes = [
-        ("scheduled", Estimator::new(&model)),
-        ("recursive", Estimator::without_schedule(&model)),
+        ("scheduled", Estimator::new(&model).at_trained_gravity()),
+        ("recursive", Estimator::without_schedule(&model).at_trained_gravity()),
     ];
     for (id, xs) in &rollouts::ROLLOUTS {
         for (mode, est) in &modes {

@@ -156,6 +156,8 @@ pub struct Estimator<'m> {
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
     /// reads as, times its trained value (1 until declared).
     g_ratio: f32,
+    /// Whether the gravity was declared ([`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared)).
+    g_declared: bool,
 }
 
 impl<'m> Estimator<'m> {
@@ -177,6 +179,7 @@ impl<'m> Estimator<'m> {
             window: EnvelopeWindow::default(),
             swing: SwingWindow::default(),
             g_ratio: 1.0,
+            g_declared: false,
         }
     }
 
@@ -194,8 +197,23 @@ impl<'m> Estimator<'m> {
         }
         Ok(Estimator {
             g_ratio: g / trained,
+            g_declared: true,
             ..self
         })
+    }
+
+    /// The same filter for a system at the blob's training gravity
+    /// [`Body::g`](crate::blob::Body::g), declared: as
+    /// [`Estimator::with_gravity`] with that `g` (which the blob's
+    /// validation keeps finite and positive). Until a gravity is declared,
+    /// the verdict on a length is
+    /// [`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared).
+    pub fn at_trained_gravity(self) -> Self {
+        Estimator {
+            g_ratio: 1.0,
+            g_declared: true,
+            ..self
+        }
     }
 
     /// A filter that ignores the blob's gain schedule and runs the
@@ -209,11 +227,12 @@ impl<'m> Estimator<'m> {
     }
 
     /// Forgets everything seen (and keeps whether the schedule is used and
-    /// the declared gravity).
+    /// the declared gravity, if any).
     pub fn reset(&mut self) {
         *self = Estimator {
             scheduled: self.scheduled,
             g_ratio: self.g_ratio,
+            g_declared: self.g_declared,
             ..Estimator::new(self.model)
         };
     }
@@ -514,6 +533,8 @@ impl<'m> Estimator<'m> {
             in_envelope: self.window.count() <= calib.envelope_max_off,
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
+            gravity_known: self.g_declared
+                || !specs.iter().any(|spec| spec.declared && spec.scales_with_g),
         };
         StepOutput {
             t: self.t,

@@ -286,7 +286,7 @@ fn conformal(v: &mut [f64], q: f64) -> f64 {
 /// Runs `xs` through a fresh estimator and returns the outputs after
 /// `WINDOW` and after all of `xs`.
 fn checkpoints(m: &Model<'_>, xs: &[[f32; 2]]) -> Result<(StepOutput, StepOutput)> {
-    let mut est = Estimator::new(m);
+    let mut est = Estimator::new(m).at_trained_gravity();
     let mut at_window = None;
     let mut last = None;
     for (n, x) in xs.iter().enumerate() {
@@ -350,7 +350,7 @@ pub fn calibrate(
     let [lo_l, hi_l] = spec.train_range;
     let widened = [lo_l * (1.0 - cfg.map_margin), hi_l * (1.0 + cfg.map_margin)];
     for r in held_out(widened, rig, cfg.map_rollouts, MAP_STEPS, cfg.seed) {
-        let mut est = Estimator::new(&m);
+        let mut est = Estimator::new(&m).at_trained_gravity();
         let mut seen = Vec::with_capacity(r.xs.len());
         for (n, x) in r.xs.iter().enumerate() {
             let q = est.step(x).map_err(|e| anyhow::anyhow!("{e}"))?.coordinate[0];

@@ -21,9 +21,9 @@ pub struct Args {
     /// Gravity of the physics, m/s^2.
     #[arg(long, default_value_t = trainer_core::protocol::G)]
     g: f64,
-    /// Training iterations of each model (the two train at once; 2000
-    /// keeps a 40 s recording under 90 s on two cores).
-    #[arg(long, default_value_t = 2000)]
+    /// Training iterations of each model (the two train at once; 1500
+    /// keeps a 40 s recording near a minute on two cores).
+    #[arg(long, default_value_t = 1500)]
     iterations: usize,
     /// Seed of both trainings.
     #[arg(long, default_value_t = 42)]

@@ -23,8 +23,9 @@ pub struct Args {
     #[arg(long)]
     json: bool,
     /// Gravity of the rig, m/s^2: the motion tells `g / L` only, so the
-    /// length is reported for this g (default: the weights' training
-    /// gravity, which the blob records).
+    /// length is reported for this g. Not given, the length is read at the
+    /// weights' training gravity (which the blob records) and the verdict
+    /// is `g not declared`.
     #[arg(long)]
     g: Option<f32>,
 }
@@ -35,10 +36,12 @@ pub fn run(a: Args) -> Result<()> {
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read(&a.data, 2)?;
     let dt = f64::from(model.blob().body.dt);
-    let g = a.g.unwrap_or(model.blob().body.g);
-    let fresh = Estimator::new(&model)
-        .with_gravity(g)
-        .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?;
+    let fresh = match a.g {
+        Some(g) => Estimator::new(&model)
+            .with_gravity(g)
+            .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?,
+        None => Estimator::new(&model),
+    };
     data::check_interval_with(&ds, dt, true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
     let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
@@ -60,7 +63,8 @@ pub fn run(a: Args) -> Result<()> {
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                 "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
-                "predicted": tracked.predicted, "off_envelope": out.off_envelope, "g": g,
+                "predicted": tracked.predicted, "off_envelope": out.off_envelope,
+                "g": a.g.unwrap_or(model.blob().body.g), "g_declared": a.g.is_some(),
             });
             println!("{v}");
         } else {

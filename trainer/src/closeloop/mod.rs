@@ -92,6 +92,9 @@ pub struct RecordingScore {
     pub source: String,
     /// Steps in all, and held out.
     pub steps: [usize; 2],
+    /// Where a gap in its time stamps begins, s after its start: the
+    /// loop used the part before it (`None`: no gap).
+    pub gap_after_s: Option<f64>,
     /// The swing diagnosis of its first part.
     pub diagnosis: SwingDiagnosis,
     /// The offset subtracted from its angle, rad.
@@ -150,7 +153,7 @@ pub struct CloseLoopReport {
 fn first_window(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<estimator::StepOutput> {
     let n = trainer_core::protocol::WINDOW.min(xs.len());
     Ok(estimator::filter::run(
-        &mut estimator::Estimator::new(model),
+        &mut estimator::Estimator::new(model).at_trained_gravity(),
         &data::states_f32(&xs[..n]),
     )?)
 }
@@ -336,17 +339,31 @@ pub fn close_loop(
     let mut held = Vec::new();
     let mut diags = Vec::new();
     let mut offsets = Vec::new();
+    let mut gaps = Vec::new();
     for ((source, rec), r) in recs.iter().zip(&ds.rollouts) {
+        // The part before the first gap in the time stamps (an encoder
+        // logged per count stops logging when the swing dies out).
         let n = data::unbroken(&r.t, dt);
-        anyhow::ensure!(
-            n == r.t.len(),
-            "{source}: a gap in the time stamps; close the loop on the parts either side of it (--start, --duration)"
-        );
+        let gap_after = (n < r.t.len()).then(|| r.t[n - 1]);
+        if let Some(t) = gap_after {
+            say(&format!(
+                "{source}: a gap in the time stamps after {t:.2} s; the loop uses the part before it"
+            ));
+        }
         let cut = (FIT_SHARE * n as f64).round() as usize;
-        let t_cut = rec.t[0] + opts.import.start + cut as f64 * dt;
-        let k = rec.t.partition_point(|&x| x < t_cut);
-        let d = diagnose::diagnose_recording(&rec.t[..k], &rec.theta[..k])
-            .with_context(|| format!("{source}: the first {:.0}% of it", 100.0 * FIT_SHARE))?;
+        let t_start = rec.t[0] + opts.import.start;
+        let t_cut = t_start + cut as f64 * dt;
+        let k0 = rec.t.partition_point(|&x| x < t_start);
+        let k = rec.t.partition_point(|&x| x < t_cut).max(k0);
+        let d = diagnose::diagnose_recording(&rec.t[k0..k], &rec.theta[k0..k]).with_context(
+            || match gap_after {
+                Some(t) => format!(
+                    "{source}: the first {:.0}% of the {t:.2} s before a gap in its time stamps (close the loop on the part after it: --start)",
+                    100.0 * FIT_SHARE
+                ),
+                None => format!("{source}: the first {:.0}% of it", 100.0 * FIT_SHARE),
+            },
+        )?;
         let offset = d
             .effects
             .iter()
@@ -362,8 +379,8 @@ pub fn close_loop(
         });
         held.push(Rollout {
             id: r.id,
-            t: r.t[cut..].iter().map(|t| t - r.t[cut]).collect(),
-            xs: fix(&r.xs[cut..]),
+            t: r.t[cut..n].iter().map(|t| t - r.t[cut]).collect(),
+            xs: fix(&r.xs[cut..n]),
         });
         say(&format!(
             "{source}: {} ({} turning points)",
@@ -371,6 +388,7 @@ pub fn close_loop(
         ));
         diags.push(d);
         offsets.push(offset);
+        gaps.push(gap_after);
     }
     let fit_ds = Dataset {
         rollouts: fit_parts,
@@ -449,11 +467,11 @@ pub fn close_loop(
         .map_err(|e| anyhow::anyhow!("with-effect blob: {e}"))?;
     // 6. Held out: before, after, and the physics.
     let mut recordings = Vec::new();
-    for (((r, (source, _)), d), (offset, l)) in held
+    for (((r, (source, _)), d), ((offset, l), gap_after)) in held
         .iter()
         .zip(&recs)
         .zip(&diags)
-        .zip(offsets.iter().zip(&lp))
+        .zip(offsets.iter().zip(&lp).zip(&gaps))
     {
         let ctx = |e: anyhow::Error| e.context(format!("{source}: the held-out part"));
         let score_before = forecast::klm(&before, &r.xs, dt).map_err(ctx)?;
@@ -486,6 +504,7 @@ pub fn close_loop(
                     .map_or(0, |x| x.xs.len()),
                 r.xs.len(),
             ],
+            gap_after_s: *gap_after,
             diagnosis: d.clone(),
             offset_corrected: *offset,
             length_physics: *l,
@@ -586,6 +605,14 @@ pub fn markdown(r: &CloseLoopReport) -> String {
     if let Some(d) = r.recordings.first() {
         s.push_str(&format!("\nCriterion: {}.\n\n", d.diagnosis.criterion));
     }
+    for x in &r.recordings {
+        if let Some(t) = x.gap_after_s {
+            s.push_str(&format!(
+                "{}: a gap in its time stamps after {t:.2} s; the loop used the part before it.\n\n",
+                x.source
+            ));
+        }
+    }
     match &r.effect_added {
         Some(e) => s.push_str(&format!(
             "## Effect added\n\n`{}` as the second physical parameter, trained over [{}, {}]: {}. Sensor offsets were subtracted from the angle.\n\n",
@@ -594,8 +621,12 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         None => s.push_str(&format!("## Effect added\n\nNone: {}.\n\n", r.effect_reason)),
     }
     s.push_str(&format!(
-        "## Held-out forecast error\n\nWindows every {} steps of the held-out part: the filter sees 64 measurements, then the model forecasts {} s from the last (less where the held-out part is short: at least 5 windows, at least 20 steps); MSE of the angle over the held-out angle's variance; median (first..third quartile) over the windows. Physics: the rod at the swings' w, without and with the diagnosed dynamic terms, from the same measured states.\n\n",
-        forecast::STRIDE, r.horizon_s
+        "## Held-out forecast error\n\nWindows every {} steps of the held-out part: the filter sees {} measurements, then the model forecasts {} s from the last (less where the held-out part is short: at least {} windows, at least {} steps); MSE of the angle over the held-out angle's variance; median (first..third quartile) over the windows. Physics: the rod at the swings' w, without and with the diagnosed dynamic terms, from the same measured states.\n\n",
+        forecast::STRIDE,
+        trainer_core::protocol::WINDOW,
+        r.horizon_s,
+        forecast::MIN_WINDOWS,
+        forecast::MIN_HORIZON
     ));
     s.push_str("| recording | held out | windows | before (declared KLM) | after (KLM with the effect) | after / before | physics without | physics with the terms |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
     let sc = |x: &forecast::Score| format!("{:.4} ({:.4}..{:.4})", x.median, x.q25, x.q75);

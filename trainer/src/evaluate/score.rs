@@ -80,7 +80,7 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
     for r in &ds.rollouts {
         let m = ds.meta(r.id).context("test rollout without truth")?;
         let mse_true = simulation_mse(model, &r.xs, model.coordinates(&[m.length as f32, 0.0]))?;
-        let mut est = Estimator::new(model);
+        let mut est = Estimator::new(model).at_trained_gravity();
         let mut last = None;
         let mut length_trace = Vec::with_capacity(WINDOW);
         let mut corrections = Vec::with_capacity(WINDOW);

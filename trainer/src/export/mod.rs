@@ -67,7 +67,10 @@ pub struct ExportInfo {
 /// Sigma of the length corrections over the protocol's estimation window.
 pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
     let n = WINDOW.min(xs.len());
-    let out = estimator::filter::run(&mut Estimator::new(model), &states_f32(&xs[..n]))?;
+    let out = estimator::filter::run(
+        &mut Estimator::new(model).at_trained_gravity(),
+        &states_f32(&xs[..n]),
+    )?;
     Ok(out.sigma[0])
 }
 

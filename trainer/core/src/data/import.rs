@@ -17,9 +17,10 @@
 //! shrinking at the ends, a twentieth of the swing's period wide on each
 //! side unless given. The angle is smoothed by the same window's quadratic.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
-//! an optional trim. Uneven time stamps are differentiated at their times
-//! ([`differentiate_uneven`]). A gap in the time stamps (more than 5 median
-//! steps and more than `dt`) is left out, not interpolated across
+//! an optional trim. Uneven time stamps are differentiated at their times,
+//! over a window of the same time ([`differentiate_uneven`]). A gap in the
+//! time stamps (more than 5 median steps and more than `dt`, with more than
+//! one count moved across it) is left out, not interpolated across
 //! ([`to_rollout`]). Refused, with the reason: a flat line, and angles that
 //! look like the wrong unit (spanning over two turns, or under 0.02 rad).
 
@@ -298,36 +299,108 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// The same differentiator on uneven time stamps `t` (an encoder logged
-/// on every count): over the window of `2m + 1` samples around each, the
-/// least-squares line through `(t_k, theta_k)`, its slope the rate and its
-/// value at `t_i` the smoothed angle. On a uniform grid this is
-/// [`differentiate`].
-pub fn differentiate_uneven(t: &[f64], theta: &[f64], m: usize) -> (Vec<f64>, Vec<f64>) {
+/// on every count): over the samples within `half` seconds either side of
+/// each (the window shrinking at the ends, as on a grid, to at least one
+/// neighbour each side), the least-squares quadratic through
+/// `(t_k - t_i, theta_k)`, its value at `t_i` the smoothed angle and its
+/// slope there the rate. The window is one of time, not of samples: an
+/// encoder logged per count writes a row every millisecond mid-swing and
+/// one every tens of milliseconds at the turning points, where a window
+/// of a fixed number of samples would span half a swing and cut its
+/// amplitude. On a uniform grid this is [`differentiate`] with
+/// `half = m h`.
+pub fn differentiate_uneven(t: &[f64], theta: &[f64], half: f64) -> (Vec<f64>, Vec<f64>) {
     let n = theta.len().min(t.len());
     let mut smooth = Vec::with_capacity(n);
     let mut rate = Vec::with_capacity(n);
+    // The window's edges move forward with i.
+    let (mut lo, mut hi) = (0usize, 0usize);
     for i in 0..n {
-        let w = m.min(i).min(n - 1 - i).max(1);
-        let lo = i.saturating_sub(w);
-        let hi = (i + w).min(n - 1);
-        let (ts, ys) = (&t[lo..=hi], &theta[lo..=hi]);
-        let k = ts.len() as f64;
-        let tm = ts.iter().sum::<f64>() / k;
-        let ym = ys.iter().sum::<f64>() / k;
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (x, y) in ts.iter().zip(ys) {
-            sxy += (x - tm) * (y - ym);
-            sxx += (x - tm) * (x - tm);
+        if i == 0 || i == n - 1 {
+            // The two end samples: a one-sided difference, as on a grid.
+            let (a, b) = if i == 0 {
+                (0, 1.min(n - 1))
+            } else {
+                (i - 1, i)
+            };
+            let dt = t[b] - t[a];
+            rate.push(if dt > 0.0 {
+                (theta[b] - theta[a]) / dt
+            } else {
+                0.0
+            });
+            smooth.push(theta[i]);
+            continue;
         }
-        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        rate.push(slope);
-        smooth.push(if i == 0 || i == n - 1 {
-            theta[i]
-        } else {
-            ym + slope * (t[i] - tm)
-        });
+        // Symmetric in time: no further than the nearer end allows.
+        let h = half.min(t[i] - t[0]).min(t[n - 1] - t[i]) * (1.0 + 1e-9);
+        while t[lo] < t[i] - h {
+            lo += 1;
+        }
+        hi = hi.max(i);
+        while hi + 1 < n && t[hi + 1] <= t[i] + h {
+            hi += 1;
+        }
+        let (a, b) = (lo.min(i - 1), hi.max(i + 1));
+        // Normal equations of theta ~ c0 + c1 u + c2 u^2 in u = (t - t_i) / h.
+        let scale = (t[b] - t[a]).max(f64::MIN_POSITIVE);
+        let mut m = [[0.0f64; 3]; 3];
+        let mut r = [0.0f64; 3];
+        for k in a..=b {
+            let u = (t[k] - t[i]) / scale;
+            let p = [1.0, u, u * u];
+            for (row, pr) in m.iter_mut().zip(p) {
+                for (cell, pc) in row.iter_mut().zip(p) {
+                    *cell += pr * pc;
+                }
+            }
+            for (rr, pr) in r.iter_mut().zip(p) {
+                *rr += pr * theta[k];
+            }
+        }
+        let (c0, c1) = match solve3(m, r) {
+            Some(c) => (c[0], c[1]),
+            // Fewer than three distinct times: the line.
+            None => {
+                let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+                if det.abs() > 1e-12 * m[0][0] * m[1][1].max(1e-300) {
+                    (
+                        (r[0] * m[1][1] - r[1] * m[0][1]) / det,
+                        (m[0][0] * r[1] - m[1][0] * r[0]) / det,
+                    )
+                } else {
+                    (theta[i], 0.0)
+                }
+            }
+        };
+        smooth.push(c0);
+        rate.push(c1 / scale);
     }
     (smooth, rate)
+}
+
+/// Solves the symmetric 3 x 3 system `m c = r` by Cramer's rule; `None`
+/// when `m` is (nearly) singular.
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |a: [[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let d = det(m);
+    let size = m[0][0] * m[1][1] * m[2][2];
+    if !(d.abs() > 1e-10 * size) {
+        return None;
+    }
+    let mut c = [0.0; 3];
+    for (j, cj) in c.iter_mut().enumerate() {
+        let mut a = m;
+        for (row, rv) in a.iter_mut().zip(r) {
+            row[j] = rv;
+        }
+        *cj = det(a) / d;
+    }
+    Some(c)
 }
 
 /// Whether the time stamps are uniform: every step within 1e-6 of the mean.
@@ -432,7 +505,9 @@ fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
 /// Imports one recording as rollout `id`: rate, trim, resample.
 ///
 /// A gap in the time stamps (a step over 5 median steps and over the
-/// model's interval) is not interpolated across, which would invent the
+/// model's interval, across which the angle moved by more than the
+/// smallest step between its rows: more than one count of an encoder
+/// logged per count) is not interpolated across, which would invent the
 /// data in it: each part is differentiated on its own and resampled on
 /// the one grid `t_0 + k dt`, and the grid points inside the gap are left
 /// out. The rollout's time stamps then jump by a whole number of steps,
@@ -447,10 +522,23 @@ pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Roll
     );
     check_span(&rec.theta, opts.unit)?;
     let step = median_step(&rec.t);
+    // A long step is no gap where the angle moved by at most one count
+    // across it: an encoder logged per count writes no row while the
+    // count stands still, as at the turning points of a small swing.
+    let count = rec
+        .theta
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let gap = |k: usize| {
+        rec.t[k] - rec.t[k - 1] > (5.0 * step).max(opts.dt)
+            && (rec.theta[k] - rec.theta[k - 1]).abs() > 1.5 * count
+    };
     let mut parts: Vec<std::ops::Range<usize>> = Vec::new();
     let mut from = 0;
     for k in 1..=rec.t.len() {
-        if k == rec.t.len() || rec.t[k] - rec.t[k - 1] > (5.0 * step).max(opts.dt) {
+        if k == rec.t.len() || gap(k) {
             if k - from >= 3 {
                 parts.push(from..k);
             }
@@ -476,7 +564,7 @@ pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Roll
                 let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
                 differentiate(theta, h, (smooth / h).round().max(1.0) as usize)
             }
-            None => differentiate_uneven(t, theta, (smooth / step).round().max(1.0) as usize),
+            None => differentiate_uneven(t, theta, smooth.max(step)),
         };
         pieces.push((t, smooth, rate));
     }
@@ -597,31 +685,31 @@ mod tests {
 
     #[test]
     fn uneven_stamps_are_differentiated_at_their_times() {
-        // Stamps jittered by up to 20% of the 1 ms step either way (an
-        // encoder logged per count), a sine of amplitude 1 at 6 rad/s, a
-        // window of +-10 samples. Tolerances: the line's slope is the rate
-        // at the window's mean time, at most 0.25 ms from t_i, so off by at
-        // most 36 x 0.25e-3 = 0.009 (plus a smoothing bias of 6e-4
-        // relative): 0.02. The line's value at t_i misses the curvature,
-        // 36 x (10 ms)^2 / 6 = 6e-4: 2e-3.
+        // Stamps jittered by up to 20% of the 1 ms step either way, a sine
+        // of amplitude 1 at 6 rad/s, a window of +-10 ms. Tolerances: the
+        // quadratic misses the sine's cubic term, which biases the slope
+        // by about 6^3 x (10 ms)^2 x 3/5 / 6 = 2.2e-3 (the window's mean
+        // u^4 over its mean u^2): 5e-3 leaves room for the jitter's
+        // asymmetry. Its value at t_i misses the quartic term, 6^4 x
+        // (10 ms)^4 / 24 = 5e-7 at most: 1e-5.
         let t: Vec<f64> = (0..300)
             .map(|k| 0.001 * (k as f64 + 0.4 * ((k * 7919 % 13) as f64 / 13.0 - 0.5)))
             .collect();
         let th: Vec<f64> = t.iter().map(|&x| (6.0 * x).sin()).collect();
-        let (s, d) = differentiate_uneven(&t, &th, 10);
+        let (s, d) = differentiate_uneven(&t, &th, 0.010);
         for k in (15..285).step_by(17) {
             assert!(
-                (d[k] - 6.0 * (6.0 * t[k]).cos()).abs() < 0.02,
+                (d[k] - 6.0 * (6.0 * t[k]).cos()).abs() < 5e-3,
                 "rate at {k}: {}",
                 d[k]
             );
-            assert!((s[k] - (6.0 * t[k]).sin()).abs() < 2e-3, "angle at {k}");
+            assert!((s[k] - (6.0 * t[k]).sin()).abs() < 1e-5, "angle at {k}");
         }
         // On a uniform grid it is the uniform differentiator.
         let tu: Vec<f64> = (0..50).map(|k| k as f64 * 0.01).collect();
         let thu: Vec<f64> = tu.iter().map(|&x| x * x).collect();
         let (_, a) = differentiate(&thu, 0.01, 3);
-        let (_, b) = differentiate_uneven(&tu, &thu, 3);
+        let (_, b) = differentiate_uneven(&tu, &thu, 0.03);
         for k in 3..47 {
             assert!((a[k] - b[k]).abs() < 1e-9, "{k}: {} vs {}", a[k], b[k]);
         }
@@ -633,6 +721,64 @@ mod tests {
         };
         let r = to_rollout(&rec, 1, &ImportOptions::default()).unwrap();
         assert!(r.xs.iter().all(|x| x[0].is_finite() && x[1].is_finite()));
+    }
+
+    #[test]
+    fn an_encoder_logged_per_count_keeps_its_turning_points() {
+        // Swings of 0.05 and 0.1 rad at 3.5 rad/s read by an encoder of
+        // 0.0015 rad a count, resolved every ms, a row when the count
+        // changes. At the turning points the count stands still for about
+        // 0.1 and 0.07 s, over the model's 0.05 s: no gap (one count
+        // moved; a gap there would drop every turning point). A window of
+        // time keeps the turning points (a window of 2m + 1 rows spanned
+        // about a quarter period at them and cut the 0.1 rad swing's
+        // amplitude by 9 counts): the imported angle within 1.5 counts of the truth
+        // everywhere (the count's own rounding is half a count), its rate
+        // within 4% of the swing's largest (a count's rounding
+        // differentiated over a twentieth of the period). Then a pause of
+        // 1 s across which the swing moved many counts: a gap, left out.
+        for a in [0.05, 0.1] {
+            let (q, w) = (0.0015, 3.5);
+            let truth = |t: f64| a * (w * t).cos();
+            let mut rec = Recording {
+                t: Vec::new(),
+                theta: Vec::new(),
+                theta_dot: None,
+            };
+            let mut last = f64::NAN;
+            for k in 0..20_000 {
+                let t = k as f64 * 0.001;
+                let v = (truth(t) / q).round() * q;
+                if v != last && !(12.0..13.0).contains(&t) {
+                    rec.t.push(t);
+                    rec.theta.push(v);
+                    last = v;
+                }
+            }
+            let r = to_rollout(&rec, 1, &ImportOptions::default()).unwrap();
+            let jumps: Vec<f64> =
+                r.t.windows(2)
+                    .map(|w| w[1] - w[0])
+                    .filter(|d| *d > 0.075)
+                    .collect();
+            assert_eq!(jumps.len(), 1, "swing {a}: {jumps:?}");
+            let (mut worst_angle, mut worst_rate) = (0.0f64, 0.0f64);
+            for (t, x) in r.t.iter().zip(&r.xs) {
+                if *t < 0.1 || (11.9..13.1).contains(t) || *t > 19.9 {
+                    continue;
+                }
+                worst_angle = worst_angle.max((x[0] - truth(*t)).abs());
+                worst_rate = worst_rate.max((x[1] + a * w * (w * t).sin()).abs());
+            }
+            assert!(
+                worst_angle < 1.5 * q,
+                "swing {a}: angle off by {worst_angle}"
+            );
+            assert!(
+                worst_rate < 0.04 * a * w,
+                "swing {a}: rate off by {worst_rate}"
+            );
+        }
     }
 
     #[test]
