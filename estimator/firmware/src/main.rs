@@ -271,7 +271,10 @@ fn run(line: &mut Line) -> bool {
     // schedule's last update).
     let modes = [
         ("scheduled", Estimator::new(&model).at_trained_gravity()),
-        ("recursive", Estimator::without_schedule(&model).at_trained_gravity()),
+        (
+            "recursive",
+            Estimator::without_schedule(&model).at_trained_gravity(),
+        ),
     ];
     for (id, xs) in &rollouts::ROLLOUTS {
         for (mode, est) in &modes {
