@@ -4,7 +4,8 @@
 //! 1. Read the recordings twice: as recorded (their own stamps, for the
 //!    diagnosis) and imported on the model's grid (for the models).
 //! 2. Split each: the first [`FIT_SHARE`] of its time is diagnosed and
-//!    trained on, the rest is held out.
+//!    trained on, the rest is held out. A recording with a gap in its
+//!    time stamps is used up to the gap, and the report says where.
 //! 3. Diagnose each recording's first part from its swings
 //!    (`trainer_core::diagnose::energy`). Sensor effects are corrected in
 //!    the data: the offset found is subtracted from the angle.
