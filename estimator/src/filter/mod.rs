@@ -156,8 +156,10 @@ pub struct Estimator<'m> {
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
     /// reads as, times its trained value (1 until declared).
     g_ratio: f32,
-    /// Whether the gravity was declared ([`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared)).
-    g_declared: bool,
+    /// Whether the gravity is known: declared, or not needed (no declared
+    /// parameter is read through it). Otherwise the verdict is
+    /// [`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared).
+    g_known: bool,
 }
 
 impl<'m> Estimator<'m> {
@@ -179,7 +181,12 @@ impl<'m> Estimator<'m> {
             window: EnvelopeWindow::default(),
             swing: SwingWindow::default(),
             g_ratio: 1.0,
-            g_declared: false,
+            g_known: !model
+                .blob()
+                .body
+                .params
+                .iter()
+                .any(|spec| spec.declared && spec.scales_with_g),
         }
     }
 
@@ -197,7 +204,7 @@ impl<'m> Estimator<'m> {
         }
         Ok(Estimator {
             g_ratio: g / trained,
-            g_declared: true,
+            g_known: true,
             ..self
         })
     }
@@ -211,7 +218,7 @@ impl<'m> Estimator<'m> {
     pub fn at_trained_gravity(self) -> Self {
         Estimator {
             g_ratio: 1.0,
-            g_declared: true,
+            g_known: true,
             ..self
         }
     }
@@ -232,7 +239,7 @@ impl<'m> Estimator<'m> {
         *self = Estimator {
             scheduled: self.scheduled,
             g_ratio: self.g_ratio,
-            g_declared: self.g_declared,
+            g_known: self.g_known,
             ..Estimator::new(self.model)
         };
     }
@@ -533,8 +540,7 @@ impl<'m> Estimator<'m> {
             in_envelope: self.window.count() <= calib.envelope_max_off,
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
-            gravity_known: self.g_declared
-                || !specs.iter().any(|spec| spec.declared && spec.scales_with_g),
+            gravity_known: self.g_known,
         };
         StepOutput {
             t: self.t,
