@@ -400,6 +400,18 @@ impl<'a> Model<'a> {
         for (d, s) in g.iter_mut().zip(y0.iter().chain(q)) {
             *d = *s;
         }
+        self.rollout_from(&g, out)
+    }
+
+    /// Rolls the augmented model forward from `[y; p]` = `g0` (a filter's
+    /// mean, [`crate::Estimator::forecast`]), writing the decoded raw
+    /// states `x_1 .. x_n` into `out`. A non-finite `g0` is refused with
+    /// [`Error::NonFiniteInput`].
+    pub fn rollout_from(&self, g0: &Aug, out: &mut [State]) -> Result<(), Error> {
+        if !g0.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFiniteInput);
+        }
+        let mut g = *g0;
         for o in out.iter_mut() {
             g = self.advance(&g);
             let mut y = [0.0; LATENT_DIM];

@@ -754,9 +754,24 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
+    // Each model's filter noise is the candidate whose forecasts on the
+    // first part err least.
+    for k in ["noise_before", "noise_after"] {
+        let n = &r[k];
+        let best = n["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|c| Some((c["r_latent"].as_f64()?, c["score"].as_f64()?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        assert_eq!(n["r_latent"].as_f64().unwrap(), best.0, "{k}: {n:#}");
+        assert_eq!(n["candidates"].as_array().unwrap().len(), 9, "{k}: {n:#}");
+    }
     // The two models trained at once; the model with the effect, trained
-    // again alone from its saved config and exported, is the same blob
-    // byte for byte (its initial weights depend on its seed only).
+    // again alone from its saved config and exported with the noise the
+    // loop chose, is the same blob byte for byte (its initial weights
+    // depend on its seed only).
     let alone = d.join("alone");
     run_ok(
         koopman()
@@ -769,6 +784,8 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         koopman()
             .arg("export")
             .arg(&alone)
+            .arg("--r-latent")
+            .arg(r["noise_after"]["r_latent"].to_string())
             .arg("--out")
             .arg(d.join("alone.kkf")),
     );

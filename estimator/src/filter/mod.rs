@@ -261,6 +261,17 @@ impl<'m> Estimator<'m> {
         AugVector::from(self.g)
     }
 
+    /// Forecasts the raw states after the last measurement from the
+    /// filter's mean `[y; p]` (not from the last measurement: the mean has
+    /// averaged its noise), writing `x_{n+1} ..` into `out`. Refused with
+    /// [`Error::FilterNotStarted`] before the first measurement.
+    pub fn forecast(&self, out: &mut [State]) -> Result<(), Error> {
+        if !self.started {
+            return Err(Error::FilterNotStarted);
+        }
+        self.model.rollout_from(&self.g, out)
+    }
+
     /// The covariance `P` after the last update, or `None` after a
     /// scheduled update before the last one (the schedule stores the
     /// gains, not every `P`). From update `T` on it is assembled from the

@@ -8,11 +8,13 @@ use plotters::prelude::*;
 use trainer_core::data::Dataset;
 use trainer_core::plot::{COLOURS, Curve, bounds, curves as draw_curves, err, png};
 
-use super::CloseLoopReport;
+use super::{CloseLoopReport, forecast};
+use trainer_core::protocol::WINDOW;
 
-/// `before_after.png`: per recording, the measured angle against the
-/// simulations of the declared model and of the model with the effect, each
-/// from `x_0` with its filter's estimate after 64 measurements.
+/// `before_after.png`: per recording, the first held-out window's
+/// measured angle against the forecasts of the declared model and of the
+/// model with the effect, each from its filter's mean after the window's
+/// measurements ([`forecast::after`]), as the score forecasts.
 pub fn close_loop(
     path: &Path,
     ds: &Dataset,
@@ -25,15 +27,15 @@ pub fn close_loop(
     let areas = root.split_evenly((n, 1));
     let dt = ds.sidecar.dt;
     for ((area, r), score) in areas.iter().zip(&ds.rollouts).zip(&report.recordings) {
-        let x0 = [r.xs[0][0] as f32, r.xs[0][1] as f32];
-        let sim = |m: &Model<'_>, p: [f32; 2]| -> Result<Vec<(f64, f64)>> {
-            let mut out = vec![[0.0f32; 2]; r.xs.len() - 1];
-            m.simulate(&x0, &p, &mut out)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
-            Ok(out
+        // The filter's window, then the forecast from its last measurement.
+        let seen = WINDOW.min(r.xs.len());
+        let horizon = r.xs.len() - seen;
+        let t0 = (seen - 1) as f64 * dt;
+        let sim = |m: &Model<'_>| -> Result<Vec<(f64, f64)>> {
+            Ok(forecast::after(m, &r.xs[..seen], horizon)?
                 .iter()
                 .enumerate()
-                .map(|(t, x)| ((t + 1) as f64 * dt, x[0] as f64))
+                .map(|(t, x)| (t0 + (t + 1) as f64 * dt, x[0]))
                 .collect())
         };
         let mut curves: Vec<Curve> = vec![(
@@ -44,17 +46,9 @@ pub fn close_loop(
                 .collect(),
             BLACK.stroke_width(2),
         )];
-        curves.push((
-            "declared model",
-            sim(before, [score.length_before, 0.0])?,
-            COLOURS[0].stroke_width(2),
-        ));
-        if let (Some(m), Some(l), Some(c)) = (after, score.length_after, score.coefficient_after) {
-            curves.push((
-                "with the effect",
-                sim(m, [l, c])?,
-                COLOURS[2].stroke_width(2),
-            ));
+        curves.push(("declared model", sim(before)?, COLOURS[0].stroke_width(2)));
+        if let Some(m) = after {
+            curves.push(("with the effect", sim(m)?, COLOURS[2].stroke_width(2)));
         }
         let (y0, y1) = bounds(curves.iter().flat_map(|c| c.1.iter().map(|p| p.1)));
         let mut chart = ChartBuilder::on(area)

@@ -1,19 +1,23 @@
 //! The held-out score: forecast error over windows of the part of a
 //! recording that neither the diagnosis nor the training saw.
 //!
-//! A window starts every [`STRIDE`] steps of the held-out part. The
-//! filter sees the blob's [`WINDOW`] measurements from there; then the
-//! model forecasts [`HORIZON_S`] seconds from the last of them with the
-//! filter's estimate. The error is the MSE of the forecast with each
-//! dimension scaled by the held-out part's standard deviation (1 = as bad
-//! as forecasting the mean). The physics is scored on the same windows,
-//! forecasting from the same measured state.
+//! A forecast starts every [`STRIDE`] steps of the held-out part. The
+//! filter sees the blob's [`WINDOW`] measurements before it (where the
+//! held-out part has not had that many yet, they reach back into the
+//! first part: only the forecast is of data the loop did not see); then
+//! the model forecasts [`HORIZON_S`] seconds on from the filter's mean
+//! `[y; p]` after the last of them (which has averaged the measurements'
+//! noise, where the last measurement alone has not). The error is the
+//! MSE of the forecast angle over the variance of the held-out angle (1
+//! = as bad as forecasting the mean). The physics is scored on the same
+//! windows, forecasting from the last measured state: a reference, which
+//! carries that state's noise.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use estimator::{Estimator, Model};
 use serde::Serialize;
 use trainer_core::data::states_f32;
-use trainer_core::metrics::{simulate, spread};
+use trainer_core::metrics::spread;
 use trainer_core::physics::Pendulum;
 use trainer_core::protocol::WINDOW;
 
@@ -68,49 +72,65 @@ fn summarise(mut v: Vec<f64>) -> Score {
     }
 }
 
-/// The windows of `xs` (held-out, unbroken, at `dt`): `(start, horizon)`.
-pub fn windows(len: usize, dt: f64) -> Result<(Vec<usize>, usize)> {
-    let room = len.saturating_sub(WINDOW + STRIDE * (MIN_WINDOWS - 1));
+/// The forecasts of `xs` (unbroken, at `dt`) whose targets lie in
+/// `xs[from..]`: `(starts, horizon)`, each start the index of a forecast's
+/// first state, with at least [`WINDOW`] measurements before it.
+pub fn windows(len: usize, from: usize, dt: f64) -> Result<(Vec<usize>, usize)> {
+    let first = from.max(WINDOW);
+    let room = len.saturating_sub(first + STRIDE * (MIN_WINDOWS - 1));
     let horizon = ((HORIZON_S / dt).round() as usize).min(room);
     anyhow::ensure!(
         horizon >= MIN_HORIZON,
-        "the held-out part has {len} samples, too few for {MIN_WINDOWS} windows of the filter's {WINDOW} and a forecast of {MIN_HORIZON} steps: record longer"
+        "{} samples to forecast, after the filter's {WINDOW}: too few for {MIN_WINDOWS} forecasts of {MIN_HORIZON} steps, {STRIDE} steps apart; record longer",
+        len.saturating_sub(first)
     );
-    Ok((
-        (0..=len - WINDOW - horizon).step_by(STRIDE).collect(),
-        horizon,
-    ))
+    Ok(((first..=len - horizon).step_by(STRIDE).collect(), horizon))
 }
 
-/// The KLM's held-out score.
-pub fn klm(model: &Model<'_>, xs: &[[f64; 2]], dt: f64) -> Result<Score> {
-    let (starts, horizon) = windows(xs.len(), dt)?;
-    let scale = spread(xs)[0];
-    let mut errs = Vec::with_capacity(starts.len());
-    for s in starts {
-        let seen = &xs[s..s + WINDOW];
-        let out = estimator::filter::run(&mut Estimator::new(model), &states_f32(seen))?;
-        let from = s + WINDOW - 1;
-        let truth = &xs[from..=from + horizon];
-        let sim = simulate(model, truth, out.coordinate)?;
-        errs.push(angle_error(&truth[1..], &sim, scale));
-    }
-    Ok(summarise(errs))
+/// The KLM's forecast of `horizon` states after the measurements `seen`:
+/// the filter sees them, then the model runs on from its mean
+/// ([`Estimator::forecast`]).
+pub fn after(model: &Model<'_>, seen: &[[f64; 2]], horizon: usize) -> Result<Vec<[f64; 2]>> {
+    let mut est = Estimator::new(model).at_trained_gravity();
+    estimator::filter::run(&mut est, &states_f32(seen))?;
+    let mut out = vec![[0.0f32; 2]; horizon];
+    est.forecast(&mut out)?;
+    Ok(out
+        .iter()
+        .map(|x| [f64::from(x[0]), f64::from(x[1])])
+        .collect())
 }
 
-/// The physics' held-out score: `p` forecasts from each window's last
-/// measured state.
-pub fn physics(p: &Pendulum, xs: &[[f64; 2]], dt: f64) -> Result<Score> {
-    let (starts, horizon) = windows(xs.len(), dt)?;
-    let scale = spread(xs)[0];
+/// The scores of `forecast(seen, horizon)` over the windows of
+/// `xs[from..]`.
+fn score(
+    xs: &[[f64; 2]],
+    from: usize,
+    dt: f64,
+    mut forecast: impl FnMut(&[[f64; 2]], usize) -> Result<Vec<[f64; 2]>>,
+) -> Result<Score> {
+    let (starts, horizon) = windows(xs.len(), from, dt)?;
+    let scale = spread(&xs[from.min(xs.len())..])[0];
     let errs = starts
         .into_iter()
-        .map(|s| {
-            let from = s + WINDOW - 1;
-            let truth = &xs[from..=from + horizon];
-            let sim = p.rollout(truth[0], horizon + 1, dt);
-            angle_error(&truth[1..], &sim[1..], scale)
+        .map(|f| {
+            let sim = forecast(&xs[f - WINDOW..f], horizon)?;
+            Ok(angle_error(&xs[f..f + horizon], &sim, scale))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     Ok(summarise(errs))
+}
+
+/// The KLM's score on `xs[from..]` (`xs` unbroken, at `dt`).
+pub fn klm(model: &Model<'_>, xs: &[[f64; 2]], from: usize, dt: f64) -> Result<Score> {
+    score(xs, from, dt, |seen, horizon| after(model, seen, horizon))
+}
+
+/// The physics' score on the same windows: `p` forecasts from each
+/// window's last measured state.
+pub fn physics(p: &Pendulum, xs: &[[f64; 2]], from: usize, dt: f64) -> Result<Score> {
+    score(xs, from, dt, |seen, horizon| {
+        let x0 = *seen.last().context("an empty window")?;
+        Ok(p.rollout(x0, horizon + 1, dt).split_off(1))
+    })
 }

@@ -107,96 +107,226 @@ impl Default for ExportOptions {
 
 /// Exports KLM run `dir` to the blob `out` with `opts`.
 pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportInfo> {
-    let paths = RunPaths::new(dir);
-    let (mut cfg, state) = run::read(dir)?;
-    cfg.q_latent = opts.q_latent.unwrap_or(cfg.q_latent);
-    cfg.r_latent = opts.r_latent.unwrap_or(cfg.r_latent);
-    let schedule_steps = opts.schedule_steps;
-    anyhow::ensure!(
-        cfg.model == ModelKind::Klm,
-        "{}: a {:?} run exports with export_baseline",
-        dir.display(),
-        cfg.model
-    );
-    let device = device();
-    let model: Klm = load_model(&paths, &cfg, &device)?;
-    let ds = training_data(&cfg);
-    let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
-    let mut parts = BlobParts::new(&model.enc, &model.dec, &f);
-    let params = [cfg.length_spec(), cfg.effect_spec()];
-    let mut q = [0.0f32; AUG_DIM];
-    let mut r = [0.0f32; LATENT_DIM];
-    let mut prior_var = [0.0f32; AUG_DIM];
-    for k in 0..LATENT_DIM {
-        q[k] = (cfg.q_latent as f32) * residual_var[k];
-        r[k] = (cfg.r_latent as f32) * residual_var[k];
-        prior_var[k] = residual_var[k];
-    }
-    prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
-    if let Some(e) = &cfg.effect {
-        // The effect's prior: the middle of its training range (its
-        // coordinate 0, the prior mean), with half the range as its
-        // standard deviation (or the config's).
-        let [lo, hi] = e.range;
-        let std = if cfg.prior_std_effect > 0.0 {
-            cfg.prior_std_effect
-        } else {
-            (0.5 * (hi - lo)).max(f64::MIN_POSITIVE)
+    Prepared::open(dir)?.finish(opts, out)
+}
+
+/// One candidate of [`export_selecting_r`]: the latent `R` scale and its
+/// score (`None`: the scorer refused it, with why).
+#[derive(Debug, Clone, Serialize)]
+pub struct RCandidate {
+    /// `r_latent`.
+    pub r_latent: f64,
+    /// The scorer's value (lower is better).
+    pub score: Option<f64>,
+    /// Why there is none.
+    pub refused: Option<String>,
+}
+
+/// Exports run `dir` to `out` with the filter's latent `R` scale chosen
+/// from `candidates`: each makes a draft blob (the run's other settings,
+/// the sigma threshold set, the trust checks open), `score` scores it
+/// (lower is better), and the best is exported and calibrated. Where no
+/// candidate can be scored, the run's own `r_latent` is exported. Returns
+/// the export and every candidate's score.
+pub fn export_selecting_r(
+    dir: &Path,
+    out: &Path,
+    candidates: &[f64],
+    mut score: impl FnMut(&Model<'_>) -> Result<f64>,
+) -> Result<(ExportInfo, Vec<RCandidate>)> {
+    let mut prepared = Prepared::open(dir)?;
+    let mut scored = Vec::with_capacity(candidates.len());
+    for &r in candidates {
+        let opts = ExportOptions {
+            r_latent: Some(r),
+            ..ExportOptions::default()
         };
-        prior_var[LATENT_DIM + 1] = (std * std) as f32;
+        // A candidate whose filter cannot be exported (its gain schedule
+        // does not settle within the window) is refused, not fatal.
+        let scored_draft = prepared.draft(&opts).and_then(|(bytes, _)| {
+            let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
+            score(&m)
+        });
+        let (score, refused) = match scored_draft {
+            Ok(v) if v.is_finite() => (Some(v), None),
+            Ok(v) => (None, Some(format!("score {v}"))),
+            Err(e) => (None, Some(format!("{e:#}"))),
+        };
+        scored.push(RCandidate {
+            r_latent: r,
+            score,
+            refused,
+        });
     }
-    let mut filter = FilterSpec {
-        q,
-        r,
-        prior_mean: [0.0; PARAM_DIM],
-        prior_var,
-        burn_in: BURN_IN,
-        sigma_threshold: 1.0,
-        schedule_steps,
-    };
-    let schedule_check = parts.set_schedule(&filter)?;
-    // The trust checks beyond sigma pass everything until calibrated below.
-    let calib_cfg = CalibrateConfig::default();
-    let full_map = vec![0xffu8; map_bytes(&calib_cfg)];
-    let q_range = [
-        params[0].coordinate(params[0].train_range[0]),
-        params[0].coordinate(params[0].train_range[1]),
-    ];
-    let open = permissive(&calib_cfg, q_range, &full_map);
-    // Calibrate: sigma over every training rollout's estimation window.
-    let draft = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params, open))?;
-    let m = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut sigmas = ds
-        .rollouts
+    let best = scored
         .iter()
-        .map(|r| window_sigma(&m, &r.xs))
-        .collect::<Result<Vec<_>>>()?;
-    sigmas.sort_by(f32::total_cmp);
-    let max = *sigmas.last().context("no training rollouts")?;
-    filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
-    let bytes = blob_bytes(&parts.blob(&state.norm, &cfg, filter, params, open))?;
-    let (bytes, trust) = calibrate_with_progress(&bytes, &calib_cfg)?;
-    Model::from_bytes(&bytes)
-        .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
-    write_atomic(out, &bytes)?;
-    let info = ExportInfo {
-        config: cfg,
-        iteration: state.iteration,
-        train_seconds: state.train_seconds,
-        residual_var: residual_var.to_vec(),
-        train_sigma_max: max,
-        train_sigma_median: sigmas[sigmas.len() / 2],
-        sigma_threshold: filter.sigma_threshold,
-        blob_bytes: bytes.len(),
-        schedule_steps,
-        schedule_check,
-        trust,
+        .filter_map(|c| Some((c.r_latent, c.score?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(r, _)| r);
+    let opts = ExportOptions {
+        r_latent: best,
+        ..ExportOptions::default()
     };
-    write_atomic(
-        &out.with_extension("json"),
-        serde_json::to_string_pretty(&info)?.as_bytes(),
-    )?;
-    Ok(info)
+    Ok((prepared.finish(&opts, out)?, scored))
+}
+
+/// A KLM run opened for export: its model loaded and `F` refitted over its
+/// training data, ready to make blobs with any filter settings.
+struct Prepared {
+    cfg: TrainConfig,
+    state: run::RunState,
+    parts: BlobParts,
+    residual_var: [f32; LATENT_DIM],
+    ds: trainer_core::data::Dataset,
+}
+
+/// A draft blob's filter and what setting it measured.
+struct Draft {
+    filter: FilterSpec,
+    schedule_check: ScheduleCheck,
+    sigmas: Vec<f32>,
+}
+
+impl Prepared {
+    fn open(dir: &Path) -> Result<Self> {
+        let paths = RunPaths::new(dir);
+        let (cfg, state) = run::read(dir)?;
+        anyhow::ensure!(
+            cfg.model == ModelKind::Klm,
+            "{}: a {:?} run exports with export_baseline",
+            dir.display(),
+            cfg.model
+        );
+        let device = device();
+        let model: Klm = load_model(&paths, &cfg, &device)?;
+        let ds = training_data(&cfg);
+        let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
+        let parts = BlobParts::new(&model.enc, &model.dec, &f);
+        Ok(Prepared {
+            cfg,
+            state,
+            parts,
+            residual_var,
+            ds,
+        })
+    }
+
+    /// The run's config with `opts`' departures.
+    fn config(&self, opts: &ExportOptions) -> TrainConfig {
+        let mut cfg = self.cfg.clone();
+        cfg.q_latent = opts.q_latent.unwrap_or(cfg.q_latent);
+        cfg.r_latent = opts.r_latent.unwrap_or(cfg.r_latent);
+        cfg
+    }
+
+    /// The blob before its trust verdict is calibrated: the filter of
+    /// `opts`, its gain schedule, and the sigma threshold; the other
+    /// checks pass everything.
+    fn draft(&mut self, opts: &ExportOptions) -> Result<(Vec<u8>, Draft)> {
+        let cfg = self.config(opts);
+        let residual_var = &self.residual_var;
+        let params = [cfg.length_spec(), cfg.effect_spec()];
+        let mut q = [0.0f32; AUG_DIM];
+        let mut r = [0.0f32; LATENT_DIM];
+        let mut prior_var = [0.0f32; AUG_DIM];
+        for k in 0..LATENT_DIM {
+            q[k] = (cfg.q_latent as f32) * residual_var[k];
+            r[k] = (cfg.r_latent as f32) * residual_var[k];
+            prior_var[k] = residual_var[k];
+        }
+        prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
+        if let Some(e) = &cfg.effect {
+            // The effect's prior: the middle of its training range (its
+            // coordinate 0, the prior mean), with half the range as its
+            // standard deviation (or the config's).
+            let [lo, hi] = e.range;
+            let std = if cfg.prior_std_effect > 0.0 {
+                cfg.prior_std_effect
+            } else {
+                (0.5 * (hi - lo)).max(f64::MIN_POSITIVE)
+            };
+            prior_var[LATENT_DIM + 1] = (std * std) as f32;
+        }
+        let mut filter = FilterSpec {
+            q,
+            r,
+            prior_mean: [0.0; PARAM_DIM],
+            prior_var,
+            burn_in: BURN_IN,
+            sigma_threshold: 1.0,
+            schedule_steps: opts.schedule_steps,
+        };
+        let schedule_check = self.parts.set_schedule(&filter)?;
+        // The trust checks beyond sigma pass everything until calibrated.
+        let calib_cfg = CalibrateConfig::default();
+        let full_map = vec![0xffu8; map_bytes(&calib_cfg)];
+        let q_range = [
+            params[0].coordinate(params[0].train_range[0]),
+            params[0].coordinate(params[0].train_range[1]),
+        ];
+        let open = permissive(&calib_cfg, q_range, &full_map);
+        // Sigma over every training rollout's estimation window.
+        let bytes = blob_bytes(
+            &self
+                .parts
+                .blob(&self.state.norm, &cfg, filter, params, open),
+        )?;
+        let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut sigmas = self
+            .ds
+            .rollouts
+            .iter()
+            .map(|r| window_sigma(&m, &r.xs))
+            .collect::<Result<Vec<_>>>()?;
+        sigmas.sort_by(f32::total_cmp);
+        let max = *sigmas.last().context("no training rollouts")?;
+        filter.sigma_threshold = (cfg.trust_factor as f32 * max).max(f32::MIN_POSITIVE);
+        let bytes = blob_bytes(
+            &self
+                .parts
+                .blob(&self.state.norm, &cfg, filter, params, open),
+        )?;
+        Ok((
+            bytes,
+            Draft {
+                filter,
+                schedule_check,
+                sigmas,
+            },
+        ))
+    }
+
+    /// The blob of `opts` with its trust verdict calibrated, written to
+    /// `out` with its [`ExportInfo`] beside it.
+    fn finish(mut self, opts: &ExportOptions, out: &Path) -> Result<ExportInfo> {
+        let (draft, d) = self.draft(opts)?;
+        let (bytes, trust) = calibrate_with_progress(&draft, &CalibrateConfig::default())?;
+        Model::from_bytes(&bytes)
+            .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
+        write_atomic(out, &bytes)?;
+        let info = ExportInfo {
+            config: self.config(opts),
+            iteration: self.state.iteration,
+            train_seconds: self.state.train_seconds,
+            residual_var: self.residual_var.to_vec(),
+            train_sigma_max: d.sigmas.last().copied().unwrap_or(f32::NAN),
+            train_sigma_median: d
+                .sigmas
+                .get(d.sigmas.len() / 2)
+                .copied()
+                .unwrap_or(f32::NAN),
+            sigma_threshold: d.filter.sigma_threshold,
+            blob_bytes: bytes.len(),
+            schedule_steps: opts.schedule_steps,
+            schedule_check: d.schedule_check,
+            trust,
+        };
+        write_atomic(
+            &out.with_extension("json"),
+            serde_json::to_string_pretty(&info)?.as_bytes(),
+        )?;
+        Ok(info)
+    }
 }
 
 /// The training config in a blob's sidecar (the JSON file beside it that
