@@ -194,11 +194,17 @@ struct UsablePart {
     at_rest_after_s: Option<f64>,
 }
 
+/// Periods kept after the last turning point above the noise: the swing
+/// goes on under the noise's size for a while, and where friction stops
+/// it is the most telling part of the dynamics; after that a recording
+/// holds noise about a pendulum at rest.
+pub const AT_REST_AFTER_PERIODS: f64 = 1.5;
+
 /// The part of `rec` (as recorded, from `t_start`) and of its import on the
 /// grid `t` (at `dt`, from 0) that the loop uses: up to the first gap in
-/// the time stamps, and up to half a period after the last turning point
-/// above the noise ([`diagnose::swings::swings`]) when the recording runs on
-/// for more than a period after it.
+/// the time stamps, and up to [`AT_REST_AFTER_PERIODS`] after the last
+/// turning point above the noise ([`diagnose::swings::swings`]) when the
+/// recording runs on for longer than that.
 fn usable_part(rec: &data::import::Recording, t_start: f64, t: &[f64], dt: f64) -> UsablePart {
     let n = data::unbroken(t, dt);
     let gap_after_s = (n < t.len()).then(|| t[n - 1]);
@@ -209,7 +215,8 @@ fn usable_part(rec: &data::import::Recording, t_start: f64, t: &[f64], dt: f64) 
         .ok()
         .and_then(|sw| {
             let last = sw.turns.last()?.t;
-            (last + sw.period < t_end).then_some(last + 0.5 * sw.period - t_start)
+            let at = last + AT_REST_AFTER_PERIODS * sw.period;
+            (at < t_end).then_some(at - t_start)
         });
     match rest {
         Some(at) => UsablePart {
@@ -846,9 +853,10 @@ mod tests {
     }
 
     /// Coulomb friction of 0.19 rad/s^2 stops the rod after about 8 s: the
-    /// loop uses the part up to the last swing above the noise, and not
-    /// more than a period past where the clean swing falls under the
-    /// noise (0.01 rad). Light viscous damping swings to the end: all of it.
+    /// loop uses the part up to 1.5 periods after the last swing above
+    /// the noise, so from two periods before to 1.5 after where the clean
+    /// swing falls under the noise (0.01 rad). Light viscous damping
+    /// swings to the end: all of it.
     #[test]
     fn a_swing_that_dies_out_is_used_up_to_where_it_does() {
         let dt = 0.04;
@@ -860,7 +868,7 @@ mod tests {
         let at = part.at_rest_after_s.expect("the swing dies out");
         let period = 2.0 * std::f64::consts::PI / (1.5 * 9.81 / 0.85f64).sqrt();
         assert!(
-            at > t_stop - 2.0 * period && at < t_stop + period,
+            at > t_stop - 2.0 * period && at < t_stop + 1.5 * period,
             "at rest after {at:.2} s; the clean swing under the noise after {t_stop:.2} s"
         );
         assert_eq!(part.steps, (at / dt).floor() as usize + 1);
