@@ -390,8 +390,9 @@ fn simulate_writes_every_slot_and_refuses_nan() {
 /// The forecast runs the model on from the filter's mean: before any
 /// measurement there is none; after the first, the mean is the encoded
 /// measurement with the prior's parameters, so the forecast is
-/// `simulate_coordinates` from that measurement, bit for bit; after the
-/// window it follows the rollout.
+/// `simulate_coordinates` from that measurement, bit for bit; after a
+/// clean window it errs as that simulation from the last measurement
+/// does; after a noisy one it starts from the mean, not the measurement.
 #[test]
 fn the_forecast_runs_on_from_the_filters_mean() {
     let bytes = shipped_blob();
@@ -433,6 +434,37 @@ fn the_forecast_runs_on_from_the_filters_mean() {
         e.is_finite() && (e - e_sim).abs() <= 0.05 * e_sim,
         "forecast {e}, simulation {e_sim}"
     );
+    // On a noisy window the mean and the encoded last measurement part:
+    // the forecast's first state is the mean advanced once and decoded
+    // (bit for bit), not the simulation's from the last measurement.
+    let mut state = 12345u64;
+    let mut noise = || {
+        // A 64-bit LCG (Knuth's MMIX constants), uniform in [-1, 1).
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 33) as f32 / (1u64 << 31) as f32 - 0.5) * 2.0
+    };
+    let noisy: Vec<[f32; 2]> = xs
+        .iter()
+        .map(|x| [x[0] + 0.05 * noise(), x[1] + 0.2 * noise()])
+        .collect();
+    let mut est = Estimator::new(&m).at_trained_gravity();
+    for x in &noisy[..WINDOW] {
+        est.step(x).unwrap();
+    }
+    est.forecast(&mut out).unwrap();
+    let mut g = [0.0f32; estimator::AUG_DIM];
+    for (d, v) in g.iter_mut().zip(est.mean().iter()) {
+        *d = *v;
+    }
+    let g1 = m.advance(&g);
+    let mut y = [0.0f32; estimator::LATENT_DIM];
+    y.copy_from_slice(&g1[..estimator::LATENT_DIM]);
+    assert_eq!(out[0], m.denormalise(&m.decode(&y)));
+    m.simulate_coordinates(&noisy[WINDOW - 1], &[g[16], g[17]], &mut sim)
+        .unwrap();
+    assert_ne!(out[0], sim[0]);
 }
 
 /// Issue 3's accuracy figures on the shipped weights: the mean length

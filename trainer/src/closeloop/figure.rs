@@ -14,7 +14,8 @@ use trainer_core::protocol::WINDOW;
 /// `before_after.png`: per recording, the first held-out window's
 /// measured angle against the forecasts of the declared model and of the
 /// model with the effect, each from its filter's mean after the window's
-/// measurements ([`forecast::after`]), as the score forecasts.
+/// measurements ([`forecast::after`]), as the score forecasts (over
+/// [`forecast::HORIZON_S`], or what the recording holds).
 pub fn close_loop(
     path: &Path,
     ds: &Dataset,
@@ -27,7 +28,7 @@ pub fn close_loop(
     let areas = root.split_evenly((n, 1));
     let dt = ds.sidecar.dt;
     for ((area, r), score) in areas.iter().zip(&ds.rollouts).zip(&report.recordings) {
-        // The filter's window, then the forecast from its last measurement.
+        // The filter's window, then the forecast from its mean.
         let seen = WINDOW.min(r.xs.len());
         let horizon = r.xs.len() - seen;
         let t0 = (seen - 1) as f64 * dt;

@@ -21,10 +21,12 @@
 //!    recordings, ties broken by the larger summed `t` (the filter carries
 //!    one extra parameter; when two are named the report says which was
 //!    added and why). Train again with it.
-//! 6. Score on the held-out parts ([`forecast`]): the declared model
+//! 6. Export each model with the filter's measurement noise `R` whose
+//!    forecasts on the first parts err least ([`R_CANDIDATES`]).
+//! 7. Score on the held-out parts ([`forecast`]): the declared model
 //!    (before), the model with the effect (after), and the physics at the
 //!    swings' `w` without and with the diagnosed terms.
-//! 7. Write `report.md`, `report.json` and the figure.
+//! 8. Write `report.md`, `report.json` and the figure.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -107,7 +109,8 @@ pub struct RecordingScore {
     pub offset_corrected: f64,
     /// The declared physics' length fitted to its first part.
     pub length_physics: f64,
-    /// Declared model: the filter's length on the first held-out window.
+    /// Declared model: the filter's length after the measurements before
+    /// the first held-out forecast.
     pub length_before: f32,
     /// Declared model: trusted there?
     pub trusted_before: bool,
@@ -115,7 +118,7 @@ pub struct RecordingScore {
     pub error_before: f64,
     /// Its quartiles and windows.
     pub score_before: forecast::Score,
-    /// Model with the effect: the filter's length on the first window.
+    /// Model with the effect: the filter's length there.
     pub length_after: Option<f32>,
     /// Model with the effect: the filter's coefficient there.
     pub coefficient_after: Option<f32>,
@@ -200,11 +203,18 @@ struct UsablePart {
 /// holds noise about a pendulum at rest.
 pub const AT_REST_AFTER_PERIODS: f64 = 1.5;
 
+/// What follows a swing's end scatters about its middle by at most this
+/// many times the swings' noise level (the window fits' residual RMS) for
+/// the recording to count as at rest there.
+pub const AT_REST_SCATTER: f64 = 3.0;
+
 /// The part of `rec` (as recorded, from `t_start`) and of its import on the
 /// grid `t` (at `dt`, from 0) that the loop uses: up to the first gap in
 /// the time stamps, and up to [`AT_REST_AFTER_PERIODS`] after the last
 /// turning point above the noise ([`diagnose::swings::swings`]) when the
-/// recording runs on for longer than that.
+/// recording runs on for longer than that, at rest ([`AT_REST_SCATTER`]).
+/// The end is read from the whole recording, held-out part included: like
+/// a gap, it says which data can be scored, not what the models learn.
 fn usable_part(rec: &data::import::Recording, t_start: f64, t: &[f64], dt: f64) -> UsablePart {
     let n = data::unbroken(t, dt);
     let gap_after_s = (n < t.len()).then(|| t[n - 1]);
@@ -216,7 +226,15 @@ fn usable_part(rec: &data::import::Recording, t_start: f64, t: &[f64], dt: f64) 
         .and_then(|sw| {
             let last = sw.turns.last()?.t;
             let at = last + AT_REST_AFTER_PERIODS * sw.period;
-            (at < t_end).then_some(at - t_start)
+            // The swing finder also stops at a glitch or a slip of phase:
+            // at rest only if what follows scatters about its middle by
+            // no more than [`AT_REST_SCATTER`] times the noise.
+            let k = rec.t.partition_point(|&x| x < at).max(k0);
+            let after = rec.theta.get(k..k1).filter(|a| a.len() >= 2)?;
+            let mid = trainer_core::metrics::median(&mut after.to_vec());
+            let rms =
+                (after.iter().map(|v| (v - mid).powi(2)).sum::<f64>() / after.len() as f64).sqrt();
+            (at < t_end && rms <= AT_REST_SCATTER * sw.noise).then_some(at - t_start)
         });
     match rest {
         Some(at) => UsablePart {
@@ -371,8 +389,20 @@ fn train_and_export(
         }
     }
     let blob = dir.join("model.kkf");
+    // The first parts long enough for forecasts of their own (one after a
+    // gap or a dying swing may not be); with none, every scale is refused
+    // and the run's own is exported.
+    let scored: Vec<&Rollout> = fit
+        .iter()
+        .filter(|r| forecast::windows(r.xs.len(), 0, dt).is_ok())
+        .collect();
     let (info, candidates) = export::export_selecting_r(&run, &blob, &R_CANDIDATES, |m| {
-        fit.iter()
+        anyhow::ensure!(
+            !scored.is_empty(),
+            "no first part is long enough for forecasts of its own"
+        );
+        scored
+            .iter()
             .map(|r| Ok(forecast::klm(m, &r.xs, 0, dt)?.median))
             .sum()
     })?;
@@ -782,7 +812,7 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         )
     };
     s.push_str(&format!(
-        "## Filter noise\n\nEach model's filter measurement noise `R` is its one-step latent residual variance times the scale whose forecasts on the first parts err least (summed medians; a scale whose gain schedule does not settle in the window is refused). Declared: {}.{}\n\n",
+        "## Filter noise\n\nEach model's filter measurement noise `R` is its one-step latent residual variance times the scale whose forecasts on the first parts err least (summed medians; a scale that cannot be exported, its gain schedule not settled in the window, or scored, the first parts too short, is refused, with why in report.json; with every scale refused the run's own is used). Declared: {}.{}\n\n",
         noise(&r.noise_before),
         r.noise_after
             .as_ref()
@@ -875,6 +905,27 @@ mod tests {
         assert!(part.gap_after_s.is_none());
         let (rec, t, _) = recorded(Effect::new(EffectKind::Viscous, 0.02));
         let part = usable_part(&rec, 0.0, &t, dt);
+        assert!(part.at_rest_after_s.is_none(), "{part:?}");
+        assert_eq!(part.steps, t.len());
+        // A slip of half a period at 10 s (a tracker that lost frames, or
+        // flipped its sign) breaks the alternation of the turning points
+        // and stops the swing finder there, but the rod swings on: not at
+        // rest.
+        let (mut rec, t, _) = recorded(Effect::new(EffectKind::Viscous, 0.02));
+        let slip = (0.5 * period / dt).round() as usize;
+        let k = (10.0 / dt) as usize;
+        let later: Vec<f64> = rec.theta[k + slip..].to_vec();
+        rec.theta.truncate(k);
+        rec.theta.extend(later);
+        rec.t.truncate(rec.theta.len());
+        let t = &t[..rec.t.len()];
+        let sw = diagnose::swings::swings(&rec.t, &rec.theta).unwrap();
+        let last = sw.turns.last().unwrap().t;
+        assert!(
+            last < 12.0,
+            "the finder went on past the slip, to {last:.2} s"
+        );
+        let part = usable_part(&rec, 0.0, t, dt);
         assert!(part.at_rest_after_s.is_none(), "{part:?}");
         assert_eq!(part.steps, t.len());
     }
