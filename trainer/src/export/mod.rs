@@ -136,6 +136,8 @@ pub fn export_selecting_r(
 ) -> Result<(ExportInfo, Vec<RCandidate>)> {
     let mut prepared = Prepared::open(dir)?;
     let mut scored = Vec::with_capacity(candidates.len());
+    // The best draft so far, kept to be calibrated and written.
+    let mut best: Option<(f64, ExportOptions, Vec<u8>, Draft)> = None;
     for &r in candidates {
         let opts = ExportOptions {
             r_latent: Some(r),
@@ -143,13 +145,19 @@ pub fn export_selecting_r(
         };
         // A candidate whose filter cannot be exported (its gain schedule
         // does not settle within the window) is refused, not fatal.
-        let scored_draft = prepared.draft(&opts).and_then(|(bytes, _)| {
+        let scored_draft = prepared.draft(&opts).and_then(|(bytes, d)| {
             let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
-            score(&m)
+            let v = score(&m)?;
+            Ok((v, bytes, d))
         });
         let (score, refused) = match scored_draft {
-            Ok(v) if v.is_finite() => (Some(v), None),
-            Ok(v) => (None, Some(format!("score {v}"))),
+            Ok((v, bytes, d)) if v.is_finite() => {
+                if best.as_ref().is_none_or(|b| v < b.0) {
+                    best = Some((v, opts, bytes, d));
+                }
+                (Some(v), None)
+            }
+            Ok((v, ..)) => (None, Some(format!("score {v}"))),
             Err(e) => (None, Some(format!("{e:#}"))),
         };
         scored.push(RCandidate {
@@ -158,16 +166,11 @@ pub fn export_selecting_r(
             refused,
         });
     }
-    let best = scored
-        .iter()
-        .filter_map(|c| Some((c.r_latent, c.score?)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(r, _)| r);
-    let opts = ExportOptions {
-        r_latent: best,
-        ..ExportOptions::default()
+    let info = match best {
+        Some((_, opts, bytes, d)) => prepared.finish_draft(&opts, &bytes, d, out)?,
+        None => prepared.finish(&ExportOptions::default(), out)?,
     };
-    Ok((prepared.finish(&opts, out)?, scored))
+    Ok((info, scored))
 }
 
 /// A KLM run opened for export: its model loaded and `F` refitted over its
@@ -300,7 +303,18 @@ impl Prepared {
     /// `out` with its [`ExportInfo`] beside it.
     fn finish(mut self, opts: &ExportOptions, out: &Path) -> Result<ExportInfo> {
         let (draft, d) = self.draft(opts)?;
-        let (bytes, trust) = calibrate_with_progress(&draft, &CalibrateConfig::default())?;
+        self.finish_draft(opts, &draft, d, out)
+    }
+
+    /// [`Prepared::finish`] of a draft already made with `opts`.
+    fn finish_draft(
+        self,
+        opts: &ExportOptions,
+        draft: &[u8],
+        d: Draft,
+        out: &Path,
+    ) -> Result<ExportInfo> {
+        let (bytes, trust) = calibrate_with_progress(draft, &CalibrateConfig::default())?;
         Model::from_bytes(&bytes)
             .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
         write_atomic(out, &bytes)?;
