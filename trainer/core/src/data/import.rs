@@ -22,7 +22,8 @@
 //! time stamps (more than 5 median steps and more than `dt`, with more than
 //! one count moved across it) is left out, not interpolated across
 //! ([`to_rollout`]). Refused, with the reason: a flat line, and angles that
-//! look like the wrong unit (spanning over two turns, or under 0.02 rad).
+//! look like the wrong unit (spanning over two turns, or under
+//! [`MIN_SPAN_DEGREES`] read in degrees).
 
 use std::path::Path;
 
@@ -416,10 +417,22 @@ fn median_step(t: &[f64]) -> f64 {
     d.get(d.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// Least span of angles read in radians, rad: a smaller swing is too
+/// small to estimate from.
+pub const MIN_SPAN_RADIANS: f64 = 0.02;
+
+/// Least span of angles read in degrees, rad (3.4 degrees peak to peak): a
+/// swing of up to 1.7 rad either way in a file in radians, read as
+/// degrees, spans less (the video files' 0.58 rad swing spans 0.020 rad
+/// so read), and a real swing of under 1.7 degrees either way is too small
+/// to estimate from.
+pub const MIN_SPAN_DEGREES: f64 = 0.06;
+
 /// Angles that cannot be a pendulum's in the unit given: a span over two
-/// turns (the file is likely in degrees), or under 0.02 rad (1.1 degrees:
-/// likely radians read as degrees, or a swing too small to use), or none
-/// at all (a flat line).
+/// turns (the file is likely in degrees), or under [`MIN_SPAN_DEGREES`]
+/// read in degrees (likely radians read as degrees) or
+/// [`MIN_SPAN_RADIANS`] in radians (a swing too small to use), or none at
+/// all (a flat line).
 fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
     let (lo, hi) = theta
         .iter()
@@ -435,12 +448,17 @@ fn check_span(theta: &[f64], unit: Unit) -> Result<()> {
         span > 0.0,
         "the angle does not change (a flat line): nothing swings"
     );
+    let least = match unit {
+        Unit::Degrees => MIN_SPAN_DEGREES,
+        Unit::Radians => MIN_SPAN_RADIANS,
+    };
     anyhow::ensure!(
-        span >= 0.02,
+        span >= least,
         "the angles span only {span:.4} rad ({:.3} degrees){}",
         span.to_degrees(),
         match unit {
-            Unit::Degrees => ": if the file is in radians, give --unit radians",
+            Unit::Degrees =>
+                ": if the file is in radians, give --unit radians (a swing in degrees this small is too small to estimate from)",
             Unit::Radians => ": a swing too small to estimate from",
         }
     );
@@ -852,6 +870,24 @@ mod tests {
         let e = to_rollout(
             &Recording {
                 theta: tiny,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &degrees,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit radians"), "{e}");
+        // So is the video files' swing of 0.58 rad either way in radians,
+        // read as degrees (a span of 0.020 rad, over the 0.02 of radians).
+        let video: Vec<f64> = t
+            .iter()
+            .map(|x| (0.58 * (4.0 * x).cos()).to_radians())
+            .collect();
+        let e = to_rollout(
+            &Recording {
+                theta: video,
                 t: t.clone(),
                 theta_dot: None,
             },
