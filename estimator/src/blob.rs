@@ -21,6 +21,11 @@
 //!
 //! Trailing bytes after the CRC are refused ([`Error::BlobTrailingBytes`]).
 //!
+//! Format 8 added the rig's geometry ([`Body::rig`], [`Rig`]): which
+//! length the first parameter is (a string's or a rod's), so that every
+//! report can name it. A format-7 blob is a rod's; `koopman calibrate`
+//! upgrades it.
+//!
 //! Format 7 added the largest unevenness of the swing the verdict trusts
 //! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
 //! that the envelope does not see.
@@ -75,12 +80,13 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::rig::Rig;
 use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_DIM, State};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 7;
+pub const FORMAT_VERSION: u16 = 8;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -555,6 +561,8 @@ pub struct Body<'a> {
     /// Gravity the model was trained at, m/s^2 (see
     /// [`ParamSpec::scales_with_g`]).
     pub g: f32,
+    /// The rig whose length the first parameter is (format 8).
+    pub rig: Rig,
     /// Hidden activation of both MLPs.
     pub activation: Activation,
     /// Normalisation offset `mu` (`x_n = (x - mu) / s`).

@@ -6,6 +6,7 @@
 //! - [`model::Model`]: reads a blob in place; encoder, decoder, simulation.
 //! - [`filter::Estimator`]: the 18-dim Kalman filter, step by step.
 //! - [`trust`]: the verdict on each estimate, with its reasons.
+//! - [`rig`]: which length the motion is read as (a string's or a rod's).
 //!
 //! Sizes are the named constants below; the filter's notation (`F`, `H`,
 //! `Q`, `R`, `P`) is defined once in [`filter`].
@@ -23,11 +24,13 @@ pub mod blob;
 mod error;
 pub mod filter;
 pub mod model;
+pub mod rig;
 pub mod trust;
 
 pub use error::Error;
 pub use filter::{Estimator, StepOutput};
 pub use model::Model;
+pub use rig::Rig;
 pub use trust::{Reason, Reasons, Trust};
 
 /// Measured state size: `(theta, theta_dot)`.

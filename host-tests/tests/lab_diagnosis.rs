@@ -64,7 +64,7 @@ fn the_swing_diagnosis_names_lab_recordings_right() {
                 spec.case.name(),
                 if ok { "ok  " } else { "MISS" },
                 spec.length,
-                if spec.string { "string" } else { "rod" },
+                spec.rig,
                 spec.rate,
                 spec.stamps,
                 spec.duration,

@@ -18,7 +18,8 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 #[command(
     name = "koopman",
     version,
-    about = "Deep Koopman model of a pendulum and its on-device Kalman estimator"
+    about = "Deep Koopman model of a pendulum and its on-device Kalman estimator",
+    after_help = cli::EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -28,30 +29,40 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Writes the protocol's training and test sets (CSV + JSON sidecar).
+    #[command(after_help = cli::EXIT_CODES)]
     Generate(cli::generate::Args),
     /// Trains the KLM (or a baseline) into a run directory.
+    #[command(after_help = cli::EXIT_CODES)]
     Train(cli::train::Args),
     /// Exports a run's weights: a KLM to one blob, a baseline (CBM, MLP) to
     /// its burnpack with a JSON sidecar.
+    #[command(after_help = cli::EXIT_CODES)]
     Export(cli::export::Args),
     /// Calibrates a blob's trust verdict on held-out rollouts (and upgrades
-    /// a blob of format 6).
+    /// a blob of format 6 or 7).
+    #[command(after_help = cli::EXIT_CODES)]
     Calibrate(cli::calibrate::Args),
     /// Runs the on-device estimator over each rollout of a CSV.
+    #[command(after_help = cli::EXIT_CODES)]
     Estimate(cli::estimate::Args),
     /// Host time per estimator step against the peers, in a few seconds.
+    #[command(after_help = cli::EXIT_CODES)]
     Bench(cli::bench::Args),
     /// Turns measured recordings into the project's CSV (rollouts 1, 2, ...).
+    #[command(after_help = cli::EXIT_CODES)]
     Import(cli::import::Args),
     /// Runs the estimator on data, then finds which physical effect explains
     /// what the model leaves.
+    #[command(after_help = cli::EXIT_CODES)]
     Diagnose(cli::diagnose::Args),
     /// The whole loop on measured data: import, train the declared model
     /// around it, diagnose, add the effect found, retrain, report before and
     /// after.
+    #[command(after_help = cli::EXIT_CODES)]
     CloseLoop(cli::close_loop::Args),
     /// Scores every model of the protocol on the test set: Table 1 with the
     /// paper's figures beside ours.
+    #[command(after_help = cli::EXIT_CODES)]
     Evaluate(cli::evaluate::Args),
 }
 
@@ -70,6 +81,9 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // `koopman estimate rec.csv --json | head -1`: the reader has what
+        // it wanted.
+        Err(e) if cli::is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

@@ -176,10 +176,11 @@ struct Held {
     xs: Vec<[f32; 2]>,
 }
 
-/// The blob's sampling interval and gravity: how its held-out rollouts
-/// are made.
+/// The blob's rig, sampling interval and gravity: how its held-out
+/// rollouts are made.
 #[derive(Clone, Copy)]
 struct Rig {
+    geometry: crate::physics::Rig,
     dt: f64,
     g: f64,
 }
@@ -191,7 +192,7 @@ fn held_out(lengths: [f32; 2], rig: Rig, n: usize, steps: usize, seed: u64) -> V
         .map(|_| {
             let length = rng.random_range(f64::from(lengths[0])..=f64::from(lengths[1]));
             let theta0 = rng.random_range(THETA0[0]..=THETA0[1]);
-            let mut p = Pendulum::new(length);
+            let mut p = Pendulum::of(rig.geometry, length);
             p.g = rig.g;
             Held {
                 length,
@@ -331,6 +332,7 @@ pub fn calibrate(
         spec.coordinate(spec.train_range[1]),
     ];
     let rig = Rig {
+        geometry: base.body.rig,
         dt: f64::from(base.body.dt),
         g: f64::from(base.body.g),
     };

@@ -27,9 +27,9 @@ pub fn run(a: Args) -> Result<()> {
     let model = super::model(&a.weights, &bytes)?;
     let r = bench::run(&model, a.seconds);
     if a.json {
-        println!("{}", serde_json::to_string(&r)?);
+        super::say(&serde_json::to_string(&r)?)?;
     } else {
-        print!("{}", bench::table(&r));
+        super::say(bench::table(&r).trim_end())?;
     }
     Ok(())
 }

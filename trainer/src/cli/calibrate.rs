@@ -1,13 +1,15 @@
 //! `koopman calibrate`: sets a blob's trust verdict on held-out rollouts
 //! (`trainer_core::calibrate`) and records how in the JSON beside it. A
 //! blob of the previous format (6, without the unevenness check) is
-//! upgraded: its model, filter and schedule are kept byte for byte.
+//! upgraded: its model, filter and schedule are kept byte for byte. So is
+//! a blob of format 7 (before the rig was recorded): every blob made
+//! before format 8 is a rod's, the protocol's.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use estimator::blob::{
-    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, FilterSpec, Header, ParamSpec,
+    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, FilterSpec, Header, ParamSpec, Rig,
     TrustSpec,
 };
 use estimator::{PARAM_DIM, STATE_DIM};
@@ -20,7 +22,7 @@ use trainer_core::io::write_atomic;
 /// figures in the JSON beside it.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The blob (format 7, or 6 to upgrade).
+    /// The blob (format 8, or 6 or 7 to upgrade).
     blob: PathBuf,
     /// Output path (default: over the input).
     #[arg(long)]
@@ -68,36 +70,58 @@ struct BlobV6<'a> {
     body: BodyV6<'a>,
 }
 
+/// The body of format 7: format 8's without `rig`.
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct BodyV7<'a> {
+    dt: f32,
+    g: f32,
+    activation: Activation,
+    norm_mu: [f32; STATE_DIM],
+    norm_s: [f32; STATE_DIM],
+    #[serde(borrow)]
+    params: [ParamSpec<'a>; PARAM_DIM],
+    filter: FilterSpec,
+    #[serde(borrow)]
+    trust: TrustSpec<'a>,
+    #[serde(borrow)]
+    _pad: &'a [u8],
+    #[serde(borrow)]
+    weights: F32s<'a>,
+}
+
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct BlobV7<'a> {
+    _header: Header,
+    #[serde(borrow)]
+    body: BodyV7<'a>,
+}
+
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
-/// The blob's bytes in the current format: as they are, or a format-6
-/// blob with every unevenness trusted, to be calibrated again by the
-/// caller.
+/// The blob's bytes in the current format: as they are, or a blob of
+/// format 6 or 7 upgraded (a rod's; format 6 with every unevenness
+/// trusted), to be calibrated again by the caller.
 fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
     let version = postcard::from_bytes::<Header>(bytes)
         .ok()
         .map(|h| h.version);
-    if Blob::from_bytes(bytes).is_ok() || version != Some(6) {
-        // Current, or broken in a way the reader names below.
-        Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-        return Ok(bytes.to_vec());
-    }
-    let (old, rest) = postcard::take_from_bytes_crc32::<BlobV6>(bytes, CRC.digest())
-        .map_err(|e| anyhow::anyhow!("{}: not a readable format-6 blob: {e}", path.display()))?;
-    anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
-    let b = old.body;
-    let t = b.trust;
-    let blob = Blob {
-        header: Header::CURRENT,
-        body: Body {
-            dt: b.dt,
-            g: b.g,
-            activation: b.activation,
-            norm_mu: b.norm_mu,
-            norm_s: b.norm_s,
-            params: b.params,
-            filter: b.filter,
-            trust: TrustSpec {
+    let unreadable = |e: postcard::Error| {
+        anyhow::anyhow!(
+            "{}: not a readable format-{} blob: {e}",
+            path.display(),
+            version.unwrap_or(0)
+        )
+    };
+    let body = match version {
+        Some(6) => {
+            let (old, rest) = postcard::take_from_bytes_crc32::<BlobV6>(bytes, CRC.digest())
+                .map_err(unreadable)?;
+            anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
+            let b = old.body;
+            let t = b.trust;
+            let trust = TrustSpec {
                 envelope: t.envelope,
                 envelope_max_off: t.envelope_max_off,
                 range: t.range,
@@ -105,16 +129,77 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
                 std_floor: t.std_floor,
                 min_swing: t.min_swing,
                 max_unevenness: f32::MAX,
-            },
-            pad: &[],
-            weights: b.weights,
-        },
+            };
+            body(
+                b.dt,
+                b.g,
+                b.activation,
+                [b.norm_mu, b.norm_s],
+                b.params,
+                b.filter,
+                trust,
+                b.weights,
+            )
+        }
+        Some(7) => {
+            let (old, rest) = postcard::take_from_bytes_crc32::<BlobV7>(bytes, CRC.digest())
+                .map_err(unreadable)?;
+            anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
+            let b = old.body;
+            body(
+                b.dt,
+                b.g,
+                b.activation,
+                [b.norm_mu, b.norm_s],
+                b.params,
+                b.filter,
+                b.trust,
+                b.weights,
+            )
+        }
+        // Current, or broken in a way the reader names.
+        _ => {
+            Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            return Ok(bytes.to_vec());
+        }
     };
     eprintln!(
-        "{}: format 6, upgraded to {FORMAT_VERSION} (model, filter and schedule unchanged)",
-        path.display()
+        "{}: format {}, upgraded to {FORMAT_VERSION}, a rod's (model, filter and schedule unchanged)",
+        path.display(),
+        version.unwrap_or(0)
     );
-    blob_bytes(&blob)
+    blob_bytes(&Blob {
+        header: Header::CURRENT,
+        body,
+    })
+}
+
+/// A current body from an older blob's parts; every blob before format 8
+/// is a rod's.
+#[allow(clippy::too_many_arguments)]
+fn body<'a>(
+    dt: f32,
+    g: f32,
+    activation: Activation,
+    [norm_mu, norm_s]: [[f32; STATE_DIM]; 2],
+    params: [ParamSpec<'a>; PARAM_DIM],
+    filter: FilterSpec,
+    trust: TrustSpec<'a>,
+    weights: F32s<'a>,
+) -> Body<'a> {
+    Body {
+        dt,
+        g,
+        rig: Rig::Rod,
+        activation,
+        norm_mu,
+        norm_s,
+        params,
+        filter,
+        trust,
+        pad: &[],
+        weights,
+    }
 }
 
 /// Runs it.
@@ -139,7 +224,7 @@ pub fn run(a: Args) -> Result<()> {
         &out.with_extension("json"),
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
-    println!(
+    super::say(&format!(
         "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}",
         out.display(),
         out_bytes.len(),
@@ -151,9 +236,9 @@ pub fn run(a: Args) -> Result<()> {
         report.std_floor,
         report.min_swing,
         report.max_unevenness
-    );
+    ))?;
     for c in &report.check {
-        println!(
+        super::say(&format!(
             "check set after {} steps: {} of {} flagged ({} of them within 20%), {} within 2 std, {} within 20%, {} more than 20% off and trusted",
             c.steps,
             c.flagged,
@@ -162,7 +247,47 @@ pub fn run(a: Args) -> Result<()> {
             c.covered,
             c.within_20_percent,
             c.wrong_trusted
-        );
+        ))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shipped blob written back as format 7 (its body without the
+    /// rig, the header's version 7) upgrades to the shipped blob, byte for
+    /// byte: the upgrade adds the rod and changes nothing else.
+    #[test]
+    fn a_format_7_blob_upgrades_to_the_same_blob_with_the_rod() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
+        let shipped = std::fs::read(&path).unwrap();
+        let b = Blob::from_bytes(&shipped).unwrap().body;
+        assert_eq!(b.rig, Rig::Rod);
+        let old = BlobV7 {
+            _header: Header {
+                version: 7,
+                ..Header::CURRENT
+            },
+            body: BodyV7 {
+                dt: b.dt,
+                g: b.g,
+                activation: b.activation,
+                norm_mu: b.norm_mu,
+                norm_s: b.norm_s,
+                params: b.params,
+                filter: b.filter,
+                trust: b.trust,
+                _pad: &[],
+                weights: b.weights,
+            },
+        };
+        let v7 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
+        assert!(Blob::from_bytes(&v7).is_err(), "format 7 read as current");
+        assert_eq!(current_format(&v7, &path).unwrap(), shipped);
+        // A current blob passes through; a truncated one is refused.
+        assert_eq!(current_format(&shipped, &path).unwrap(), shipped);
+        assert!(current_format(&v7[..v7.len() - 9], &path).is_err());
+    }
 }

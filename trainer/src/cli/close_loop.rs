@@ -45,7 +45,7 @@ pub fn run(a: Args) -> Result<()> {
         quiet: a.quiet,
     };
     let r = closeloop::close_loop(&a.inputs, &a.out, &opts)?;
-    print!("{}", closeloop::markdown(&r));
-    println!("\nwrote {}", a.out.display());
+    super::say(closeloop::markdown(&r).trim_end())?;
+    super::say(&format!("\nwrote {}", a.out.display()))?;
     Ok(())
 }

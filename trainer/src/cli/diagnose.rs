@@ -1,89 +1,54 @@
-//! `koopman diagnose`: which physical effect explains what the model
-//! leaves in data.
+//! `koopman diagnose`: which physical effect a recording's swings show,
+//! and the length their period gives for the declared rig.
 
 use std::path::PathBuf;
 
 use anyhow::Result;
 use trainer_core::data;
-use trainer_core::diagnose;
+use trainer_core::diagnose::{self, Gravity};
 
-use super::RecordingArgs;
+use super::{RecordingArgs, RigArg};
 
-/// Finds which physical effect explains what the declared physics leaves:
-/// from each recording's swings (energy lost between turning points, no
-/// differentiation), and by the one-step residual regression with the
-/// estimator's length.
+/// Finds which physical effect each recording's swings show (energy lost
+/// between turning points, the centres' offset; nothing differentiated)
+/// and the length their period gives for the declared rig. One verdict:
+/// `none`, `explained` or `unexplained`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Weights blob.
-    #[arg(long, default_value = "weights/pendulum.kkf")]
-    weights: PathBuf,
     /// A project CSV `rollout,t,theta,theta_dot` (e.g. from `koopman
     /// import`), or recordings to import as `koopman import` does.
     #[arg(required = true)]
     data: Vec<PathBuf>,
-    /// Print the diagnosis as JSON.
+    /// Print the diagnosis as JSON (its top-level `verdict` is the one
+    /// verdict).
     #[arg(long)]
     json: bool,
-    /// Write diagnosis.json and residual.png here.
+    /// Write diagnosis.json here.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Gravity of the rig, m/s^2: the declared physics' and the one the
-    /// estimator's length is scaled to (default: the weights' training
-    /// gravity).
-    #[arg(long)]
+    /// Gravity of the rig, m/s^2 (9.81 on Earth). Not given, lengths are
+    /// read at the protocol's g = 10 and the output says so.
+    #[arg(long, value_parser = super::gravity)]
     g: Option<f64>,
+    #[command(flatten)]
+    rig: RigArg,
     #[command(flatten)]
     recording: RecordingArgs,
 }
 
-/// Runs it: the swing diagnosis of each recording (its own stamps), then
-/// the one-step residual regression of the imported data with the model.
+/// Runs it.
 pub fn run(a: Args) -> Result<()> {
-    let bytes = super::read_blob(&a.weights)?;
-    let model = super::model(&a.weights, &bytes)?;
-    let g = a.g.unwrap_or(f64::from(model.blob().body.g));
+    let gravity = Gravity::declared_or_protocol(a.g)?;
     let opts = a.recording.options()?;
     let recs = data::read_recordings(&a.data, &opts)?;
-    let swings = diagnose::diagnose_recordings(&recs);
-    let ds = data::read_inputs(&a.data, &opts)?;
-    data::check_interval_with(&ds, f64::from(model.blob().body.dt), true)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data[0].display()))?;
-    // The regression needs every rollout long enough; a recording whose
-    // swings were read is diagnosed even where it cannot run.
-    let residual = diagnose::diagnose(&model, &ds, g);
-    let residual = match residual {
-        Ok(d) => Some(d),
-        Err(e) if swings.iter().any(|s| s.diagnosis.is_some()) => {
-            eprintln!("one-step residual regression skipped: {e:#}");
-            None
-        }
-        Err(e) => return Err(e),
-    };
-    if let (Some(dir), Some(d)) = (&a.out, &residual) {
-        diagnose::write(dir, d)?;
-    }
+    let d = diagnose::diagnose(&recs, a.rig.rig, gravity)?;
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir)?;
-        trainer_core::io::write_atomic(
-            &dir.join("swings.json"),
-            serde_json::to_string_pretty(&swings)?.as_bytes(),
-        )?;
+        diagnose::write(dir, &d)?;
     }
     if a.json {
-        let mut v = match &residual {
-            Some(d) => serde_json::to_value(d)?,
-            None => serde_json::json!({}),
-        };
-        v["swings"] = serde_json::to_value(&swings)?;
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        super::say(&serde_json::to_string_pretty(&d)?)?;
     } else {
-        println!("swings (energy lost between turning points; offset from their centres):");
-        print!("{}", diagnose::swings_summary(&swings));
-        if let Some(d) = &residual {
-            println!("\none-step residual regression (the model's view):");
-            print!("{}", diagnose::summary(d));
-        }
+        super::say(diagnose::summary(&d).trim_end())?;
     }
     Ok(())
 }

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use anyhow::Result;
 use estimator::Estimator;
 use trainer_core::data;
-use trainer_core::track::track;
+use trainer_core::track::figure::{self, Trace};
+use trainer_core::track::track_each;
 
 /// Runs the on-device estimator over each rollout of a CSV.
 #[derive(Debug, clap::Args)]
@@ -28,6 +29,12 @@ pub struct Args {
     /// is `g not declared`.
     #[arg(long)]
     g: Option<f32>,
+    /// Write one figure per rollout here (`rollout-N.png`): the length
+    /// with its 2-std band over time, the effect coefficient if the blob
+    /// has one, the angle, and the spans where the verdict is not trusted,
+    /// shaded and labelled with the reasons.
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 /// Runs it.
@@ -44,16 +51,54 @@ pub fn run(a: Args) -> Result<()> {
     };
     data::check_interval_with(&ds, dt, true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
-    let names: Vec<&str> = model.blob().body.params.iter().map(|p| p.name).collect();
+    let body = &model.blob().body;
+    let names: Vec<&str> = body.params.iter().map(|p| p.name).collect();
+    let rig = body.rig;
+    if let Some(dir) = &a.plot {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create: {e}", dir.display()))?;
+    }
     if !a.json {
-        println!(
-            "rollout  steps  {:>10}  {:>10}  {:>10}  trust",
-            names[0], "std", "sigma"
-        );
+        super::say(&format!(
+            "rollout  steps  {:>18}  {:>10}  {:>10}  trust",
+            rig.length_label(),
+            "std",
+            "sigma"
+        ))?;
     }
     for r in &ds.rollouts {
-        let tracked = track(&mut fresh.clone(), r, dt, a.steps)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+        let mut steps = Vec::new();
+        let tracked = track_each(&mut fresh.clone(), r, dt, a.steps, |t, o| {
+            if a.plot.is_some() {
+                steps.push((t, o.clone()));
+            }
+        })
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+        if let Some(dir) = &a.plot {
+            let effect = body.params[1]
+                .declared
+                .then(|| (names[1], effect_unit(names[1])));
+            let path = dir.join(format!("rollout-{}.png", r.id));
+            let g_note = match a.g {
+                Some(g) => format!("g = {g} declared"),
+                None => format!("g not declared: read at the blob's {}", body.g),
+            };
+            figure::estimate(
+                &path,
+                &Trace {
+                    title: format!(
+                        "{} rollout {} with {} ({g_note})",
+                        a.data.display(),
+                        r.id,
+                        a.weights.display()
+                    ),
+                    length_label: rig.length_label().to_string(),
+                    effect,
+                    theta: r.xs.iter().take(steps.len()).map(|x| x[0]).collect(),
+                    steps,
+                },
+            )?;
+        }
         let (out, n) = (tracked.out, tracked.measured);
         let trusted = out.trust.is_trusted();
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
@@ -64,12 +109,13 @@ pub fn run(a: Args) -> Result<()> {
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                 "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
                 "predicted": tracked.predicted, "off_envelope": out.off_envelope,
-                "g": a.g.unwrap_or(model.blob().body.g), "g_declared": a.g.is_some(),
+                "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
+                "rig": rig, "length_label": rig.length_label(),
             });
-            println!("{v}");
+            super::say(&v.to_string())?;
         } else {
-            println!(
-                "{:>7}  {:>5}  {:>10.4}  {:>10.4}  {:>10.4e}  {}{}",
+            super::say(&format!(
+                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {:>10.4e}  {}{}",
                 r.id,
                 n,
                 out.params[0],
@@ -81,14 +127,19 @@ pub fn run(a: Args) -> Result<()> {
                 } else {
                     format!(" ({})", reasons.join(", "))
                 }
-            );
+            ))?;
             if tracked.predicted > 0 {
-                println!(
+                super::say(&format!(
                     "         (gaps in the time stamps: {} steps predicted without a sample)",
                     tracked.predicted
-                );
+                ))?;
             }
         }
     }
     Ok(())
+}
+
+/// The unit of an effect named in a blob (`?` for a name no effect has).
+fn effect_unit(name: &str) -> &'static str {
+    trainer_core::physics::EffectKind::parse(name).map_or("?", |k| k.unit())
 }

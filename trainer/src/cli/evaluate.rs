@@ -66,14 +66,15 @@ pub fn run(a: Args) -> Result<()> {
     };
     let r = evaluate::evaluate(&sets, &test, a.out.as_deref(), &command, a.quiet)?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&table1::to_json(&r.table))?
-        );
+        super::say(&serde_json::to_string_pretty(&table1::to_json(&r.table))?)?;
     } else {
-        print!("{}", evaluate::markdown(&r));
+        super::say(evaluate::markdown(&r).trim_end())?;
         if let Some(dir) = &a.out {
-            println!("\nwrote {} (in {:.1} s)", dir.display(), r.seconds);
+            super::say(&format!(
+                "\nwrote {} (in {:.1} s)",
+                dir.display(),
+                r.seconds
+            ))?;
         }
     }
     Ok(())

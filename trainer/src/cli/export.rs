@@ -46,13 +46,13 @@ pub fn run(a: Args) -> Result<()> {
                 r_latent: a.r_latent,
             };
             let info = export::export_with(&a.run, &out, &opts)?;
-            println!(
+            super::say(&format!(
                 "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
                 out.display(),
                 info.blob_bytes,
                 info.sigma_threshold,
                 info.train_sigma_max
-            );
+            ))?;
         }
         kind => {
             let name = if kind == ModelKind::Cbm { "cbm" } else { "mlp" };
@@ -60,12 +60,12 @@ pub fn run(a: Args) -> Result<()> {
                 .out
                 .unwrap_or_else(|| format!("weights/{name}.bpk").into());
             let info = baseline::export_baseline(&a.run, &out)?;
-            println!(
+            super::say(&format!(
                 "wrote {} ({} bytes) and {}",
                 out.display(),
                 info.bytes,
                 baseline::baseline_sidecar(&out).display()
-            );
+            ))?;
         }
     }
     Ok(())

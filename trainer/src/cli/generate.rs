@@ -44,13 +44,13 @@ pub fn run(a: Args) -> Result<()> {
     let test = data::test_set(a.seed, &TEST_LENGTHS, &a.effect);
     let p = data::write(&train, &a.out, "train")?;
     let q = data::write(&test, &a.out, "test")?;
-    println!(
+    super::say(&format!(
         "wrote {} ({} rollouts) and {} ({} rollouts)",
         p.display(),
         train.rollouts.len(),
         q.display(),
         test.rollouts.len()
-    );
+    ))?;
     Ok(())
 }
 
@@ -67,7 +67,7 @@ fn lab(seed: u64, out: &std::path::Path) -> Result<()> {
         trainer_core::io::write_atomic(&out.join(&name), text.as_bytes())?;
         truth.push(serde_json::json!({
             "file": name, "case": spec.case.name(), "length": spec.length,
-            "string": spec.string, "theta0": spec.theta0, "duration": spec.duration,
+            "rig": spec.rig, "theta0": spec.theta0, "duration": spec.duration,
             "rate": spec.rate, "stamps": format!("{:?}", spec.stamps), "noise": spec.noise,
             "quantum": spec.quantum, "offset": spec.offset,
             "effects": spec.effects.iter().map(|e| (e.name(), e.coefficient)).collect::<Vec<_>>(),
@@ -78,6 +78,10 @@ fn lab(seed: u64, out: &std::path::Path) -> Result<()> {
         &out.join("lab.json"),
         serde_json::to_string_pretty(&truth)?.as_bytes(),
     )?;
-    println!("wrote {} lab recordings to {}", truth.len(), out.display());
+    super::say(&format!(
+        "wrote {} lab recordings to {}",
+        truth.len(),
+        out.display()
+    ))?;
     Ok(())
 }

@@ -38,14 +38,14 @@ pub fn run(a: Args) -> Result<()> {
         .context("--out needs a file name")?;
     let csv = data::write(&ds, dir, name)?;
     for (p, r) in a.inputs.iter().zip(&ds.rollouts) {
-        println!(
+        super::say(&format!(
             "{} -> rollout {}: {} steps of {} s",
             p.display(),
             r.id,
             r.xs.len(),
             opts.dt
-        );
+        ))?;
     }
-    println!("wrote {}", csv.display());
+    super::say(&format!("wrote {}", csv.display()))?;
     Ok(())
 }

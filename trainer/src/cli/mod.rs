@@ -2,9 +2,11 @@
 //! it runs. Each is a thin layer over the library; the shared helpers are
 //! here.
 
+use std::io::Write;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use trainer_core::physics::Rig;
 
 pub mod bench;
 pub mod calibrate;
@@ -16,6 +18,51 @@ pub mod export;
 pub mod generate;
 pub mod import;
 pub mod train;
+
+/// Exit status and its meaning, as `--help` states them.
+pub const EXIT_CODES: &str = "Exit status: 0 done; 1 an error of the input (a file, its data, a blob), said on stderr; 2 usage (an unknown option, a bad value). A closed pipe on stdout (e.g. `| head`) ends quietly with 0.";
+
+/// Writes `text` and a newline to standard output. A closed pipe comes back
+/// as an error of kind `BrokenPipe`, which `main` ends quietly on.
+pub fn say(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}")?;
+    Ok(())
+}
+
+/// Whether `e` is standard output's pipe closed by its reader.
+pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// A value of `--g`: a finite, positive number of m/s^2.
+pub fn gravity(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(g) if g.is_finite() && g > 0.0 => Ok(g),
+        _ => Err(format!(
+            "{s:?}: g must be a positive number of m/s^2 (9.81 on Earth)"
+        )),
+    }
+}
+
+/// The rig's geometry, as `diagnose` and `close-loop` take it.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct RigArg {
+    /// The rig: `simple` (a bob on a string; the length is pivot to the
+    /// bob's centre) or `rod` (a uniform rod swinging about its end). The
+    /// motion fixes only the equivalent simple length g / w0^2; lengths are
+    /// reported for this rig.
+    #[arg(long, default_value = "simple", value_parser = rig)]
+    pub rig: Rig,
+}
+
+/// A value of `--rig`.
+pub fn rig(s: &str) -> Result<Rig, String> {
+    s.parse::<Rig>().map_err(|e| format!("{s:?}: {e}"))
+}
 
 /// The bytes of a weights blob, with the path in the error.
 pub fn read_blob(path: &Path) -> Result<Vec<u8>> {

@@ -36,7 +36,11 @@ pub struct Args {
     /// A config file (JSON, TrainConfig) to start from.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Training lengths, m.
+    /// The rig the lengths are of: `rod` (the protocol's uniform rod,
+    /// the default) or `simple` (a bob on a string). The blob records it.
+    #[arg(long, value_parser = super::rig)]
+    rig: Option<trainer_core::physics::Rig>,
+    /// Training lengths, m (of the rig).
     #[arg(long, value_delimiter = ',')]
     lengths: Option<Vec<f64>>,
     /// Gravity of the simulated data, m/s^2.
@@ -80,6 +84,9 @@ impl Args {
         if let Some(v) = self.window {
             cfg.window = v;
         }
+        if let Some(v) = self.rig {
+            cfg.rig = v;
+        }
         if let Some(v) = &self.lengths {
             cfg.lengths = v.clone();
         }
@@ -116,7 +123,7 @@ impl Args {
 pub fn run(a: Args) -> Result<()> {
     let cfg = a.config()?;
     let state = train::train(&a.run, cfg, a.resume, a.quiet)?;
-    println!(
+    super::say(&format!(
         "trained {} iterations in {:.1} s ({:.4} s/iteration); last batch losses {:.3e} (parts {:.3e} {:.3e} {:.3e}, named in {})",
         state.iteration,
         state.train_seconds,
@@ -126,6 +133,6 @@ pub fn run(a: Args) -> Result<()> {
         state.last_losses[2],
         state.last_losses[3],
         RunPaths::new(&a.run).log.display()
-    );
+    ))?;
     Ok(())
 }

@@ -40,7 +40,7 @@ use trainer_core::data::import::ImportOptions;
 use trainer_core::data::{self, Dataset, Rollout};
 use trainer_core::diagnose::{self, energy::SwingDiagnosis};
 use trainer_core::io::write_atomic;
-use trainer_core::physics::{Effect, EffectKind, EffectRange, Pendulum, rod_length};
+use trainer_core::physics::{Effect, EffectKind, EffectRange, Pendulum, Rig};
 
 mod figure;
 pub mod forecast;
@@ -562,7 +562,7 @@ pub fn close_loop(
         .iter()
         .zip(&recs)
         .map(|(d, (source, _))| {
-            let l = rod_length(opts.g, d.w * d.w);
+            let l = Rig::Rod.length(opts.g, d.w * d.w);
             anyhow::ensure!(
                 l.is_finite() && l > 0.0,
                 "{source}: the swings give no length (w = {} rad/s)",
@@ -658,7 +658,7 @@ pub fn close_loop(
             None => None,
         };
         // The physics at the swings' w (a rod: w^2 = 3 g / 2 L).
-        let mut p = Pendulum::new(rod_length(opts.g, d.w * d.w));
+        let mut p = Pendulum::new(Rig::Rod.length(opts.g, d.w * d.w));
         p.g = opts.g;
         let physics_before = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
         p.effects = d

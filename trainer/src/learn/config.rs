@@ -3,7 +3,7 @@
 use estimator::blob::{Activation, ParamSpec, Reading};
 use serde::{Deserialize, Serialize};
 use trainer_core::data::RolloutMeta;
-use trainer_core::physics::EffectRange;
+use trainer_core::physics::{EffectRange, Rig};
 use trainer_core::protocol::{DT, G, ROLLOUT_LEN, THETA0, TRAIN_LENGTHS};
 
 /// Which model a run trains (the protocol's three).
@@ -29,6 +29,9 @@ pub struct TrainConfig {
     pub model: ModelKind,
     /// Seed of the training data and of the weights' initialisation.
     pub seed: u64,
+    /// The rig whose length the training lengths are (the protocol's: a
+    /// rod); the blob records it.
+    pub rig: Rig,
     /// Training lengths, m.
     pub lengths: Vec<f64>,
     /// Gravity of the simulated training data, m/s^2.
@@ -94,6 +97,7 @@ impl Default for TrainConfig {
         TrainConfig {
             model: ModelKind::Klm,
             seed: 42,
+            rig: Rig::Rod,
             lengths: TRAIN_LENGTHS.to_vec(),
             g: G,
             dt: DT,

@@ -105,6 +105,7 @@ pub fn training_data(cfg: &TrainConfig) -> Dataset {
         cfg.rollouts_per_length,
         &[],
         data::Physics {
+            rig: cfg.rig,
             g: cfg.g,
             dt: cfg.dt,
             steps: cfg.rollout_steps,

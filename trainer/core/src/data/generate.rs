@@ -7,12 +7,14 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::{Dataset, Rollout, RolloutMeta, Sidecar};
-use crate::physics::{Effect, EffectRange, Pendulum};
+use crate::physics::{Effect, EffectRange, Pendulum, Rig};
 use crate::protocol::{DT, G, ROLLOUT_LEN, TEST_PER_LENGTH, THETA0};
 
 /// The physical constants a data set is simulated with.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Physics {
+    /// The rig whose length the data sets' lengths are.
+    pub rig: Rig,
     /// Gravity, m/s^2.
     pub g: f64,
     /// Observation interval, s.
@@ -22,8 +24,9 @@ pub struct Physics {
 }
 
 impl Physics {
-    /// The protocol's: `g = 10`, `dt = 0.05`, 128 measurements.
+    /// The protocol's: a rod, `g = 10`, `dt = 0.05`, 128 measurements.
     pub const PROTOCOL: Physics = Physics {
+        rig: Rig::Rod,
         g: G,
         dt: DT,
         steps: ROLLOUT_LEN,
@@ -38,7 +41,7 @@ fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
     let mut metas = Vec::new();
     let dt = physics.dt;
     for (id, (length, theta0, effects)) in specs.into_iter().enumerate() {
-        let mut p = Pendulum::new(length);
+        let mut p = Pendulum::of(physics.rig, length);
         p.g = physics.g;
         p.effects = effects.clone();
         let xs = p.rollout([theta0, 0.0], physics.steps, dt);
@@ -142,6 +145,7 @@ mod tests {
     fn constants_and_a_varied_effect_reach_the_data() {
         let varied = EffectRange::parse("viscous:0.1..0.3").unwrap();
         let physics = Physics {
+            rig: Rig::Rod,
             g: 9.81,
             dt: 0.02,
             steps: ROLLOUT_LEN,

@@ -28,7 +28,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::import::Recording;
-use crate::physics::{Effect, EffectKind};
+use crate::physics::{Effect, EffectKind, Rig};
 
 /// Gravity of the lab, m/s^2.
 pub const LAB_G: f64 = 9.81;
@@ -123,8 +123,8 @@ pub struct LabSpec {
     pub case: Case,
     /// Length, m.
     pub length: f64,
-    /// A string (point mass) rather than a rod.
-    pub string: bool,
+    /// A string (point mass, [`Rig::Simple`]) or a rod.
+    pub rig: Rig,
     /// Released from rest at this angle, rad.
     pub theta0: f64,
     /// Seconds recorded.
@@ -149,16 +149,16 @@ pub struct LabSpec {
 impl LabSpec {
     /// `w^2` of the undamped small swing.
     pub fn w2(&self) -> f64 {
-        if self.string {
-            LAB_G / self.length
-        } else {
-            1.5 * LAB_G / self.length
-        }
+        self.rig.w2(LAB_G, self.length)
     }
 
     /// Draws the recording of `case` from `rng`.
     pub fn draw(case: Case, rng: &mut ChaCha8Rng) -> LabSpec {
-        let string = rng.random_bool(0.6);
+        let rig = if rng.random_bool(0.6) {
+            Rig::Simple
+        } else {
+            Rig::Rod
+        };
         let stamps = match rng.random_range(0..4) {
             0 => Stamps::PerCount,
             1 => Stamps::Jittered,
@@ -169,7 +169,7 @@ impl LabSpec {
             _ => [12.0, 25.0, 30.0, 50.0, 100.0][rng.random_range(0..5)],
         };
         // At least 12 samples a period: T = 2 pi / w >= 12 / rate.
-        let w2_per_l = if string { LAB_G } else { 1.5 * LAB_G };
+        let w2_per_l = rig.w2(LAB_G, 1.0);
         let min_len = (w2_per_l * (12.0 / (2.0 * PI * rate)).powi(2)).max(0.1);
         let length = rng.random_range(min_len.min(0.9)..1.0);
         let quantum = match stamps {
@@ -215,7 +215,7 @@ impl LabSpec {
         LabSpec {
             case,
             length,
-            string,
+            rig,
             theta0: u(rng, 0.25, 1.2),
             duration: 30.0 * 10f64.powf(u(rng, 0.0, 1.0)),
             rate,

@@ -26,6 +26,18 @@ pub fn track(
     dt: f64,
     limit: Option<usize>,
 ) -> anyhow::Result<Tracked> {
+    track_each(est, r, dt, limit, |_, _| {})
+}
+
+/// [`track`], handing each sample's time stamp and the output after it to
+/// `each` (what a figure of the estimate over time draws).
+pub fn track_each(
+    est: &mut Estimator<'_>,
+    r: &Rollout,
+    dt: f64,
+    limit: Option<usize>,
+    mut each: impl FnMut(f64, &StepOutput),
+) -> anyhow::Result<Tracked> {
     let n = limit.unwrap_or(r.xs.len()).min(r.xs.len());
     anyhow::ensure!(n >= 1, "rollout {}: no samples", r.id);
     let steps = model_steps(r.t.get(..n).unwrap_or(&r.t), dt)
@@ -35,6 +47,7 @@ pub fn track(
     };
     let state = |x: &[f64; 2]| [x[0] as f32, x[1] as f32];
     let mut out = est.step(&state(&r.xs[0])).map_err(|e| fail(0, e))?;
+    each(r.t[0], &out);
     let mut predicted = 0u64;
     for (k, (x, &s)) in r.xs[1..n].iter().zip(&steps).enumerate() {
         if s > 1 {
@@ -42,6 +55,7 @@ pub fn track(
             predicted += u64::from(s - 1);
         }
         out = est.step(&state(x)).map_err(|e| fail(k + 1, e))?;
+        each(r.t[k + 1], &out);
     }
     Ok(Tracked {
         out,
@@ -49,3 +63,5 @@ pub fn track(
         predicted,
     })
 }
+
+pub mod figure;

@@ -1,0 +1,280 @@
+//! `estimate --plot`: one rollout's estimate over time. The length with
+//! its 2-std band, the effect coefficient when the blob has one, and the
+//! measured angle; the spans where the verdict is not `trusted` are
+//! shaded and labelled with their reasons.
+
+use std::path::Path;
+
+use anyhow::Result;
+use estimator::{StepOutput, Trust};
+use plotters::prelude::*;
+
+use crate::plot::{COLOURS, bounds, err, png};
+
+/// What one figure shows.
+pub struct Trace<'a> {
+    /// Title: the recording and the blob.
+    pub title: String,
+    /// The first parameter's label, e.g. `length (simple, m)`.
+    pub length_label: String,
+    /// The second parameter's name and unit, when the blob declares one.
+    pub effect: Option<(&'a str, &'a str)>,
+    /// Each sample's time stamp, s, and the estimator's output after it.
+    pub steps: Vec<(f64, StepOutput)>,
+    /// The measured angle at those stamps, rad.
+    pub theta: Vec<f64>,
+}
+
+/// A run of consecutive steps with the same verdict: `[from, to]` in s
+/// and the verdict's words (`pending`, or the untrusted reasons).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Span {
+    /// First and last time stamp, s.
+    pub t: [f64; 2],
+    /// `pending`, or the reasons joined by `; ` (never `trusted`).
+    pub label: String,
+}
+
+/// The verdict of one step in words, `None` when trusted.
+fn verdict_words(trust: &Trust) -> Option<String> {
+    match trust {
+        Trust::Trusted => None,
+        Trust::Pending => Some("pending".into()),
+        Trust::Untrusted(r) => Some(r.iter().map(|r| r.as_str()).collect::<Vec<_>>().join("; ")),
+    }
+}
+
+/// The spans where the verdict is not `trusted`, each with one label.
+pub fn untrusted_spans(steps: &[(f64, StepOutput)]) -> Vec<Span> {
+    let mut spans: Vec<Span> = Vec::new();
+    let mut open = false;
+    for (t, out) in steps {
+        match (verdict_words(&out.trust), spans.last_mut()) {
+            (Some(label), Some(last)) if open && last.label == label => last.t[1] = *t,
+            (Some(label), _) => {
+                spans.push(Span { t: [*t, *t], label });
+                open = true;
+            }
+            (None, _) => open = false,
+        }
+    }
+    spans
+}
+
+/// A light fill per distinct label: pending grey, the rest in turn.
+fn fill(label: &str, labels: &[String]) -> RGBAColor {
+    if label == "pending" {
+        return RGBColor(150, 150, 150).mix(0.25);
+    }
+    let shades = [
+        RGBColor(230, 90, 60),
+        RGBColor(240, 170, 40),
+        RGBColor(180, 90, 200),
+        RGBColor(60, 150, 220),
+    ];
+    let k = labels.iter().position(|l| l == label).unwrap_or(0);
+    shades[k % shades.len()].mix(0.22)
+}
+
+/// Draws the figure of `trace` into `path` (PNG).
+pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
+    let panels = 2 + usize::from(trace.effect.is_some());
+    let root = png(path, (1400, 260 * panels as u32 + 90))?;
+    let (head, body) = root.split_vertically(40);
+    head.draw(&Text::new(
+        trace.title.clone(),
+        (10, 10),
+        ("sans-serif", 20).into_font(),
+    ))
+    .map_err(err)?;
+    let spans = untrusted_spans(&trace.steps);
+    let mut labels: Vec<String> = Vec::new();
+    for s in &spans {
+        if s.label != "pending" && !labels.contains(&s.label) {
+            labels.push(s.label.clone());
+        }
+    }
+    let (body, foot) = body.split_vertically(260 * panels as u32);
+    let areas = body.split_evenly((panels, 1));
+    let t_end = trace.steps.last().map_or(1.0, |s| s.0);
+    let t_start = trace.steps.first().map_or(0.0, |s| s.0);
+    let xr = t_start..t_end.max(t_start + 1e-6);
+    // Panel: a parameter with its 2-std band.
+    let param = |area: &DrawingArea<BitMapBackend<'_>, _>, k: usize, label: &str| -> Result<()> {
+        let pts: Vec<(f64, f64, f64)> = trace
+            .steps
+            .iter()
+            .map(|(t, o)| (*t, f64::from(o.params[k]), 2.0 * f64::from(o.param_std[k])))
+            .collect();
+        // The axis follows the estimate once the verdict is given: the
+        // first steps' wide band would hide it.
+        let settled: Vec<&(f64, f64, f64)> = pts
+            .iter()
+            .zip(&trace.steps)
+            .filter(|(_, s)| !matches!(s.1.trust, Trust::Pending))
+            .map(|(p, _)| p)
+            .collect();
+        let shown: Vec<&(f64, f64, f64)> = if settled.is_empty() {
+            pts.iter().collect()
+        } else {
+            settled
+        };
+        let (y0, y1) = bounds(shown.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]));
+        let mut chart = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(xr.clone(), y0..y1)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("t (s)")
+            .y_desc(label)
+            .draw()
+            .map_err(err)?;
+        for s in &spans {
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
+                    fill(&s.label, &labels).filled(),
+                )))
+                .map_err(err)?;
+        }
+        let clip = |v: f64| v.clamp(y0, y1);
+        let band: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|p| (p.0, clip(p.1 + p.2)))
+            .chain(pts.iter().rev().map(|p| (p.0, clip(p.1 - p.2))))
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, COLOURS[2].mix(0.25))))
+            .map_err(err)?
+            .label("2 std")
+            .legend(|(x, y)| {
+                Rectangle::new([(x, y - 5), (x + 20, y + 5)], COLOURS[2].mix(0.25).filled())
+            });
+        chart
+            .draw_series(LineSeries::new(
+                pts.iter().map(|p| (p.0, clip(p.1))),
+                COLOURS[2].stroke_width(2),
+            ))
+            .map_err(err)?
+            .label("estimate")
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], COLOURS[2].stroke_width(2))
+            });
+        crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)
+    };
+    param(&areas[0], 0, &trace.length_label)?;
+    if let Some((name, unit)) = trace.effect {
+        param(&areas[1], 1, &format!("{name} ({unit})"))?;
+    }
+    // Panel: the measured angle.
+    let area = &areas[panels - 1];
+    let theta: Vec<(f64, f64)> = trace
+        .steps
+        .iter()
+        .zip(&trace.theta)
+        .map(|((t, _), v)| (*t, *v))
+        .collect();
+    let (y0, y1) = bounds(theta.iter().map(|p| p.1));
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
+        .build_cartesian_2d(xr, y0..y1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("theta (rad)")
+        .draw()
+        .map_err(err)?;
+    for s in &spans {
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
+                fill(&s.label, &labels).filled(),
+            )))
+            .map_err(err)?;
+    }
+    chart
+        .draw_series(LineSeries::new(theta, BLACK.stroke_width(1)))
+        .map_err(err)?;
+    // The key to the shading: each verdict's colour and words.
+    let mut y = 8;
+    let mut key = vec![(
+        "pending: no verdict yet".to_string(),
+        fill("pending", &labels),
+    )];
+    key.extend(
+        labels
+            .iter()
+            .map(|l| (format!("untrusted: {l}"), fill(l, &labels))),
+    );
+    if spans.is_empty() {
+        key = vec![("trusted throughout".to_string(), WHITE.mix(0.0))];
+    }
+    for (text, colour) in key.into_iter().take(4) {
+        foot.draw(&Rectangle::new([(10, y), (40, y + 14)], colour.filled()))
+            .map_err(err)?;
+        foot.draw(&Text::new(text, (50, y), ("sans-serif", 15).into_font()))
+            .map_err(err)?;
+        y += 20;
+    }
+    root.present().map_err(err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use estimator::{Reason, Reasons};
+
+    fn out(trust: Trust) -> StepOutput {
+        StepOutput {
+            t: 0,
+            params: [1.0, 0.0],
+            param_std: [0.1, 0.0],
+            coordinate: [1.0, 0.0],
+            coordinate_std: [0.1, 0.0],
+            correction: [0.0; 2],
+            sigma: [0.0; 2],
+            trust,
+            off_envelope: 0,
+            swing: 0.5,
+            unevenness: None,
+        }
+    }
+
+    #[test]
+    fn spans_run_over_equal_verdicts_and_skip_trusted_steps() {
+        let mut small = Reasons::new();
+        small.push(Reason::SmallSwing).unwrap();
+        let steps: Vec<(f64, StepOutput)> = [
+            Trust::Pending,
+            Trust::Pending,
+            Trust::Trusted,
+            Trust::Untrusted(small.clone()),
+            Trust::Untrusted(small),
+            Trust::Trusted,
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(k, v)| (k as f64, out(v)))
+        .collect();
+        let spans = untrusted_spans(&steps);
+        assert_eq!(
+            spans,
+            vec![
+                Span {
+                    t: [0.0, 1.0],
+                    label: "pending".into()
+                },
+                Span {
+                    t: [3.0, 4.0],
+                    label: "swing below the accurate range".into()
+                },
+            ]
+        );
+    }
+}
