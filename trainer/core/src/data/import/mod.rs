@@ -1,0 +1,383 @@
+//! `koopman import`: measured recordings into the project's CSV.
+//!
+//! Two input formats:
+//! - the rotary-encoder logger's (`../shared/data/measured/rotary-encoder/`):
+//!   line 1 names `trigger_start_deg, sample_rate, duration_sec`, line 2 holds
+//!   their values, then one angle per line in degrees, sample `k` at
+//!   `k / sample_rate` s;
+//! - a table with a header line, comma-, tab- or semicolon-separated, whose
+//!   time, angle and (optional) rate columns the user names ([`Columns`])
+//!   or which has the usual names (`t`, `theta`, `theta_dot`, ...); without a
+//!   time column the sample rate is given (`--rate`).
+//!
+//! Angles are converted to radians. Where the rate is missing it is derived
+//! by a smoothing differentiator: the least-squares slope over a centred
+//! window of `2m + 1` samples, `theta_dot_i = sum_k k theta_{i+k} / (h sum_k k^2)`
+//! (Savitzky-Golay, first derivative, linear or quadratic fit), the window
+//! shrinking at the ends, a twentieth of the swing's period wide on each
+//! side unless given. The angle is smoothed by the same window's quadratic.
+//! Then both are resampled to the model's `dt` by linear interpolation, after
+//! an optional trim. Uneven time stamps are differentiated at their times,
+//! over a window of the same time ([`differentiate_uneven`]). A gap in the
+//! time stamps (more than 5 median steps and more than `dt`, with more than
+//! one count moved across it) is left out, not interpolated across
+//! ([`to_rollout`]). Refused, with the reason: a flat line, and angles that
+//! look like the wrong unit (spanning over two turns, or under
+//! [`MIN_SPAN_DEGREES`] read in degrees).
+//!
+//! Where each piece lives: reading the two formats and naming the columns
+//! in `read` ([`parse`], [`parse_table`]); the checks on what is read in
+//! `checks` ([`check_recording`], [`MIN_SPAN_DEGREES`],
+//! [`MIN_SPAN_RADIANS`]); the differentiators and the window they take
+//! from the swing's period in `differentiate` ([`differentiate()`],
+//! [`differentiate_uneven`], [`rough_period`]); the gaps and the
+//! resampling onto the model's grid in `resample`; here the types and the
+//! steps of an import ([`to_rollout`], [`import()`]).
+
+mod checks;
+mod differentiate;
+mod read;
+mod resample;
+
+pub use checks::{MIN_SPAN_DEGREES, MIN_SPAN_RADIANS, check_recording};
+pub use differentiate::{differentiate, differentiate_uneven, rough_period};
+pub use read::{parse, parse_table};
+
+use crate::protocol::DT;
+
+use anyhow::{Context, Result};
+
+use super::table::Table;
+use super::{Dataset, Rollout, Sidecar};
+use resample::Part;
+
+/// Angle unit of the input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Unit {
+    /// Degrees.
+    Degrees,
+    /// Radians.
+    Radians,
+}
+
+/// How to import.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ImportOptions {
+    /// Unit of the angles (the rotary-encoder format is always degrees).
+    pub unit: Unit,
+    /// Sample rate, Hz, for inputs without a time column (the rotary-encoder
+    /// format states its own).
+    pub rate: Option<f64>,
+    /// Output interval, s (the model's `dt`).
+    pub dt: f64,
+    /// Drop the first this many seconds.
+    pub start: f64,
+    /// Keep at most this many seconds after `start`.
+    pub duration: Option<f64>,
+    /// Half-width of the differentiator's window, seconds; `None`: a
+    /// twentieth of the swing's period ([`rough_period`]), which damps the
+    /// rate of the swing by about 1% and the noise as much as that allows.
+    pub smooth: Option<f64>,
+    /// Which columns of a plain CSV hold what.
+    pub columns: Columns,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        ImportOptions {
+            unit: Unit::Radians,
+            rate: None,
+            dt: DT,
+            start: 0.0,
+            duration: None,
+            smooth: None,
+            columns: Columns::default(),
+        }
+    }
+}
+
+/// A recording as read: times, angles (rad) and rates where the input had them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// Times, s, increasing.
+    pub t: Vec<f64>,
+    /// Angle, rad.
+    pub theta: Vec<f64>,
+    /// Rate, rad/s, if the input had a column for it.
+    pub theta_dot: Option<Vec<f64>>,
+}
+
+/// Which columns of a plain CSV hold what: a header name (compared
+/// without case and without a unit in brackets or parentheses, so `theta`
+/// names `Theta [deg]`) or a 1-based column number. Unset: the first of
+/// the usual names ([`TIME_NAMES`], [`ANGLE_NAMES`], [`RATE_NAMES`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Columns {
+    /// The time stamps, s.
+    pub time: Option<String>,
+    /// The angle.
+    pub angle: Option<String>,
+    /// The angular rate (optional in the file).
+    pub rate: Option<String>,
+}
+
+/// Header names taken as the time column.
+pub const TIME_NAMES: [&str; 4] = ["t", "time", "timestamp", "time_s"];
+/// Header names taken as the angle column.
+pub const ANGLE_NAMES: [&str; 3] = ["theta", "angle", "phi"];
+/// Header names taken as the rate column.
+pub const RATE_NAMES: [&str; 3] = ["theta_dot", "omega", "angular_velocity"];
+
+/// Imports one recording as rollout `id`: rate, trim, resample.
+///
+/// A gap in the time stamps (a step over 5 median steps and over the
+/// model's interval, across which the angle moved by more than the
+/// smallest step between its rows: more than one count of an encoder
+/// logged per count) is not interpolated across, which would invent the
+/// data in it: each part is differentiated on its own and resampled on
+/// the one grid `t_0 + k dt`, and the grid points inside the gap are left
+/// out. The rollout's time stamps then jump by a whole number of steps,
+/// which `koopman estimate` bridges with the filter's prediction
+/// ([`super::model_steps`]). A part of fewer than 3 samples is dropped.
+pub fn to_rollout(rec: &Recording, id: u32, opts: &ImportOptions) -> Result<Rollout> {
+    checks::check_import(rec, opts)?;
+    let step = resample::median_step(&rec.t);
+    let ranges = resample::split_at_gaps(rec, step, opts.dt)?;
+    // Per part: the angle (smoothed where the rate is derived) and the rate.
+    let parts: Vec<Part> = ranges
+        .into_iter()
+        .map(|r| {
+            let (t, theta) = (&rec.t[r.clone()], &rec.theta[r.clone()]);
+            let (theta, rate) = match &rec.theta_dot {
+                Some(rate) => (theta.to_vec(), rate[r].to_vec()),
+                None => differentiate::smooth_and_rate(t, theta, opts.smooth, step),
+            };
+            Part { t, theta, rate }
+        })
+        .collect();
+    let ends = (rec.t[0], rec.t[rec.t.len() - 1]);
+    let (t, xs) = resample::onto_grid(&parts, ends, opts)?;
+    Ok(Rollout { id, t, xs })
+}
+
+/// Imports files as rollouts `1..`, into a data set without truth.
+pub fn import(paths: &[std::path::PathBuf], opts: &ImportOptions) -> Result<Dataset> {
+    let mut rollouts = Vec::new();
+    for (k, p) in paths.iter().enumerate() {
+        let rec = parse_table(&Table::read(p)?, opts)?;
+        rollouts.push(
+            to_rollout(&rec, k as u32 + 1, opts).with_context(|| format!("{}", p.display()))?,
+        );
+    }
+    Ok(Dataset {
+        rollouts,
+        sidecar: Sidecar {
+            set: "measured".into(),
+            seed: None,
+            dt: opts.dt,
+            rollouts: Vec::new(),
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn a_plain_csv_is_resampled_and_trimmed() {
+        let mut text = String::from("t,theta,theta_dot\n");
+        for k in 0..=100 {
+            let t = k as f64 * 0.01;
+            text.push_str(&format!("{t},{},{}\n", 2.0 * t, 2.0));
+        }
+        let opts = ImportOptions {
+            unit: Unit::Radians,
+            start: 0.1,
+            duration: Some(0.5),
+            ..ImportOptions::default()
+        };
+        let rec = parse(Path::new("p.csv"), &text, &opts).unwrap();
+        let r = to_rollout(&rec, 7, &opts).unwrap();
+        assert_eq!(r.id, 7);
+        assert_eq!(r.xs.len(), 11); // 0.1 .. 0.6 every 0.05
+        for (t, x) in r.t.iter().zip(&r.xs) {
+            assert!((x[0] - 2.0 * (t + 0.1)).abs() < 1e-9);
+            assert_eq!(x[1], 2.0);
+        }
+        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n0,2\n", &opts).unwrap_err();
+        assert!(e.to_string().contains("p.csv:3"), "{e}");
+    }
+
+    #[test]
+    fn an_encoder_logged_per_count_keeps_its_turning_points() {
+        // Swings of 0.05 and 0.1 rad at 3.5 rad/s read by an encoder of
+        // 0.0015 rad a count, resolved every ms, a row when the count
+        // changes. At the turning points the count stands still for about
+        // 0.1 and 0.07 s, over the model's 0.05 s: no gap (one count
+        // moved; a gap there would drop every turning point). A window of
+        // time keeps the turning points (a window of 2m + 1 rows spanned
+        // about a quarter period at them and cut the 0.1 rad swing's
+        // amplitude by 9 counts): the imported angle within 1.5 counts of the truth
+        // everywhere (the count's own rounding is half a count), its rate
+        // within 4% of the swing's largest (a count's rounding
+        // differentiated over a twentieth of the period). Then a pause of
+        // 1 s across which the swing moved many counts: a gap, left out.
+        for a in [0.05, 0.1] {
+            let (q, w) = (0.0015, 3.5);
+            let truth = |t: f64| a * (w * t).cos();
+            let mut rec = Recording {
+                t: Vec::new(),
+                theta: Vec::new(),
+                theta_dot: None,
+            };
+            let mut last = f64::NAN;
+            for k in 0..20_000 {
+                let t = k as f64 * 0.001;
+                let v = (truth(t) / q).round() * q;
+                if v != last && !(12.0..13.0).contains(&t) {
+                    rec.t.push(t);
+                    rec.theta.push(v);
+                    last = v;
+                }
+            }
+            let r = to_rollout(&rec, 1, &ImportOptions::default()).unwrap();
+            let jumps: Vec<f64> =
+                r.t.windows(2)
+                    .map(|w| w[1] - w[0])
+                    .filter(|d| *d > 0.075)
+                    .collect();
+            assert_eq!(jumps.len(), 1, "swing {a}: {jumps:?}");
+            let (mut worst_angle, mut worst_rate) = (0.0f64, 0.0f64);
+            for (t, x) in r.t.iter().zip(&r.xs) {
+                if *t < 0.1 || (11.9..13.1).contains(t) || *t > 19.9 {
+                    continue;
+                }
+                worst_angle = worst_angle.max((x[0] - truth(*t)).abs());
+                worst_rate = worst_rate.max((x[1] + a * w * (w * t).sin()).abs());
+            }
+            assert!(
+                worst_angle < 1.5 * q,
+                "swing {a}: angle off by {worst_angle}"
+            );
+            assert!(
+                worst_rate < 0.04 * a * w,
+                "swing {a}: rate off by {worst_rate}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_gap_is_left_out_and_a_flat_line_and_the_wrong_unit_are_named() {
+        let opts = ImportOptions::default();
+        let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
+        // 100 s without samples in the middle: both sides on one grid, the
+        // gap's grid points left out, nothing interpolated across it.
+        let mut t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        t.extend((0..200).map(|k| 102.0 + k as f64 * 0.01));
+        let r = to_rollout(
+            &Recording {
+                theta: swing(&t),
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap();
+        let jumps: Vec<f64> =
+            r.t.windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|d| *d > 1.5 * opts.dt)
+                .collect();
+        assert_eq!(jumps.len(), 1, "{jumps:?}");
+        assert!((jumps[0] - 100.05).abs() < 1e-6, "{jumps:?}");
+        let steps = super::super::model_steps(&r.t, opts.dt).unwrap();
+        assert_eq!(steps.iter().filter(|&&k| k > 1).count(), 1);
+        // Grid 0, 0.05, ..., 1.95, then 102.00, ..., 103.95: 2079 steps.
+        assert_eq!(steps.iter().map(|&k| u64::from(k)).sum::<u64>(), 2079);
+        for (at, x) in r.t.iter().zip(&r.xs) {
+            // Resampled from the smoothed angle: within 1% of the swing.
+            let want = 0.5 * (3.0 * at).cos();
+            assert!((x[0] - want).abs() < 0.01, "t = {at}: {} vs {want}", x[0]);
+        }
+        let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        // A flat line.
+        let e = to_rollout(
+            &Recording {
+                theta: vec![0.3; 200],
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("flat line"), "{e}");
+        // Degrees read as radians: a swing of +-30 "rad".
+        let deg: Vec<f64> = swing(&t).iter().map(|v| 60.0 * v).collect();
+        let e = to_rollout(
+            &Recording {
+                theta: deg,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit degrees"), "{e}");
+        // Radians read as degrees: a swing of 0.017 rad.
+        let tiny: Vec<f64> = swing(&t).iter().map(|v| v.to_radians()).collect();
+        let degrees = ImportOptions {
+            unit: Unit::Degrees,
+            ..ImportOptions::default()
+        };
+        let e = to_rollout(
+            &Recording {
+                theta: tiny,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &degrees,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit radians"), "{e}");
+        // So is the video files' swing of 0.58 rad either way in radians,
+        // read as degrees (a span of 0.020 rad, over the 0.02 of radians).
+        let video: Vec<f64> = t
+            .iter()
+            .map(|x| (0.58 * (4.0 * x).cos()).to_radians())
+            .collect();
+        let e = to_rollout(
+            &Recording {
+                theta: video,
+                t: t.clone(),
+                theta_dot: None,
+            },
+            1,
+            &degrees,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--unit radians"), "{e}");
+        // A single swing (0.6 s at 100 Hz) imports.
+        let one: Vec<f64> = t[..60].to_vec();
+        let r = to_rollout(
+            &Recording {
+                theta: swing(&one),
+                t: one,
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap();
+        assert_eq!(r.xs.len(), 12);
+    }
+}

@@ -1,0 +1,110 @@
+//! The gaps in a recording's time stamps, and the resampling of the parts
+//! between them onto the model's grid by linear interpolation.
+
+use std::ops::Range;
+
+use anyhow::Result;
+
+use super::{ImportOptions, Recording};
+
+/// The median step between time stamps.
+pub(super) fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(f64::total_cmp);
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// The parts of `rec` between its gaps (see
+/// [`to_rollout`](super::to_rollout)), each of 3 samples or more (shorter
+/// ones dropped), `step` being the median step and `dt` the model's
+/// interval; an error when none is left.
+pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<Range<usize>>> {
+    // A long step is no gap where the angle moved by at most one count
+    // across it: an encoder logged per count writes no row while the
+    // count stands still, as at the turning points of a small swing.
+    let count = rec
+        .theta
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let gap = |k: usize| {
+        rec.t[k] - rec.t[k - 1] > (5.0 * step).max(dt)
+            && (rec.theta[k] - rec.theta[k - 1]).abs() > 1.5 * count
+    };
+    let mut parts: Vec<Range<usize>> = Vec::new();
+    let mut from = 0;
+    for k in 1..=rec.t.len() {
+        if k == rec.t.len() || gap(k) {
+            if k - from >= 3 {
+                parts.push(from..k);
+            }
+            from = k;
+        }
+    }
+    anyhow::ensure!(
+        !parts.is_empty(),
+        "no stretch of 3 or more samples without a gap in the time stamps"
+    );
+    Ok(parts)
+}
+
+/// A part of a recording between gaps: its time stamps, and the angle
+/// (smoothed where the rate is derived) and the rate at them.
+pub(super) struct Part<'a> {
+    /// Times, s, increasing.
+    pub(super) t: &'a [f64],
+    /// Angle, rad.
+    pub(super) theta: Vec<f64>,
+    /// Rate, rad/s.
+    pub(super) rate: Vec<f64>,
+}
+
+/// The parts trimmed and resampled on the one grid `first + start + k dt`
+/// (`first` and `last` the recording's first and last time stamps, the
+/// options' `start`, `duration` and `dt`): the grid's times from 0 and
+/// `(theta, theta_dot)` at each, the grid points inside a gap left out;
+/// an error when nothing is left after trimming or fewer than 2 samples.
+pub(super) fn onto_grid(
+    parts: &[Part],
+    (first, last): (f64, f64),
+    opts: &ImportOptions,
+) -> Result<(Vec<f64>, Vec<[f64; 2]>)> {
+    let t0 = first + opts.start;
+    let end = opts.duration.map_or(last, |d| last.min(t0 + d));
+    anyhow::ensure!(end > t0, "nothing left after trimming {} s", opts.start);
+    let n = ((end - t0) / opts.dt + 1e-9).floor() as usize + 1;
+    let mut t = Vec::with_capacity(n);
+    let mut xs = Vec::with_capacity(n);
+    for k in 0..n {
+        let at = t0 + k as f64 * opts.dt;
+        // The part this grid point lies in (none: it is inside a gap).
+        let Some(p) = parts
+            .iter()
+            .find(|p| at >= p.t[0] - 1e-9 && at <= p.t[p.t.len() - 1] + 1e-9)
+        else {
+            continue;
+        };
+        t.push(k as f64 * opts.dt);
+        xs.push([interp(p.t, &p.theta, at), interp(p.t, &p.rate, at)]);
+    }
+    anyhow::ensure!(
+        xs.len() >= 2,
+        "fewer than 2 samples at the model's interval {} s after trimming",
+        opts.dt
+    );
+    Ok((t, xs))
+}
+
+/// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).
+fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
+    let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);
+    let (t0, t1) = (t[k - 1], t[k]);
+    // Repeated stamps (a logger's resolution) have no slope between them.
+    let a = if t1 > t0 {
+        ((at - t0) / (t1 - t0)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    v[k - 1] * (1.0 - a) + v[k] * a
+}
