@@ -649,7 +649,8 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     let out = d.join("loop");
     run_ok(
         koopman()
-            .args(["close-loop", "--quiet", "--iterations", "20", "--out"])
+            .args(["close-loop", "--quiet", "--iterations", "20", "--rig"])
+            .args(["simple", "--g", "9.81", "--out"])
             .arg(&out)
             .arg(&gapped),
     );
@@ -678,6 +679,19 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         "{off}"
     );
     assert_eq!(r["effect_added"]["name"], "viscous");
+    // A string declared a string at Earth's g: its period reads its
+    // length within 1%, and the report says which length it is.
+    assert_eq!(spec["rig"], "simple");
+    let (l, truth) = (
+        rec["length_physics"].as_f64().unwrap(),
+        spec["length"].as_f64().unwrap(),
+    );
+    assert!((l - truth).abs() < 0.01 * truth, "{l} m, truth {truth} m");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("length (simple, m)") && md.contains("declared g = 9.81"),
+        "{md}"
+    );
     // Held out: the 40 s before the gap at 0.05 s, the last third.
     assert!(
         (rec["gap_after_s"].as_f64().unwrap() - 40.0).abs() < 1e-6,

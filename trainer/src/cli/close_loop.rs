@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use trainer::closeloop::{self, CloseLoopOptions};
 
-use super::RecordingArgs;
+use super::{RecordingArgs, RigArg};
 
 /// The whole loop on measured data: import, train the declared model
 /// around it, diagnose, add the effect found, retrain, report before and
@@ -18,9 +18,13 @@ pub struct Args {
     /// Output directory (runs, blobs, report.md, report.json, figures).
     #[arg(long, default_value = "runs/close-loop")]
     out: PathBuf,
-    /// Gravity of the physics, m/s^2.
-    #[arg(long, default_value_t = trainer_core::protocol::G)]
-    g: f64,
+    /// Gravity of the rig, m/s^2 (9.81 on Earth). Not given, the
+    /// protocol's 10 is used and the report says that its lengths are read
+    /// at it.
+    #[arg(long, value_parser = super::gravity)]
+    g: Option<f64>,
+    #[command(flatten)]
+    rig: RigArg,
     /// Training iterations of each model (the two train at once; 1500
     /// keeps a 40 s recording near a minute on two cores).
     #[arg(long, default_value_t = 1500)]
@@ -39,7 +43,9 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let opts = CloseLoopOptions {
         import: a.recording.options()?,
-        g: a.g,
+        rig: a.rig.rig,
+        g: a.g.unwrap_or(trainer_core::protocol::G),
+        g_declared: a.g.is_some(),
         iterations: a.iterations,
         seed: a.seed,
         quiet: a.quiet,

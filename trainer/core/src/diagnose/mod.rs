@@ -240,7 +240,7 @@ pub fn diagnose(
 /// How a printed length is to be read, in words.
 pub fn length_note(rig: Rig, gravity: Gravity) -> String {
     format!(
-        "the motion fixes only the equivalent simple length g / w0^2; the {} is that length converted for the declared rig ({rig}; --rig simple for a bob on a string, rod for a uniform rod); {}",
+        "The motion fixes only the equivalent simple length g / w0^2; the {} is that length converted for the declared rig ({rig}; --rig simple for a bob on a string, rod for a uniform rod); {}",
         rig.length_label(),
         gravity.note()
     )

@@ -11,6 +11,9 @@ use plotters::prelude::*;
 
 use crate::plot::{COLOURS, bounds, err, png};
 
+/// Most lines of the key to the shading.
+const KEY_LINES: usize = 8;
+
 /// What one figure shows.
 pub struct Trace<'a> {
     /// Title: the recording and the blob.
@@ -66,27 +69,22 @@ fn fill(label: &str, labels: &[String]) -> RGBAColor {
     if label == "pending" {
         return RGBColor(150, 150, 150).mix(0.25);
     }
+    // Warm and neutral shades: the estimate's band is blue.
     let shades = [
-        RGBColor(230, 90, 60),
-        RGBColor(240, 170, 40),
-        RGBColor(180, 90, 200),
-        RGBColor(60, 150, 220),
+        RGBColor(230, 80, 50),
+        RGBColor(240, 170, 30),
+        RGBColor(170, 80, 190),
+        RGBColor(150, 100, 50),
+        RGBColor(230, 100, 170),
+        RGBColor(140, 150, 40),
     ];
     let k = labels.iter().position(|l| l == label).unwrap_or(0);
-    shades[k % shades.len()].mix(0.22)
+    shades[k % shades.len()].mix(0.25)
 }
 
 /// Draws the figure of `trace` into `path` (PNG).
 pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
     let panels = 2 + usize::from(trace.effect.is_some());
-    let root = png(path, (1400, 260 * panels as u32 + 90))?;
-    let (head, body) = root.split_vertically(40);
-    head.draw(&Text::new(
-        trace.title.clone(),
-        (10, 10),
-        ("sans-serif", 20).into_font(),
-    ))
-    .map_err(err)?;
     let spans = untrusted_spans(&trace.steps);
     let mut labels: Vec<String> = Vec::new();
     for s in &spans {
@@ -94,6 +92,19 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
             labels.push(s.label.clone());
         }
     }
+    // The key: one line per verdict, below the panels.
+    let key_lines = (labels.len() + 1).min(KEY_LINES);
+    let root = png(
+        path,
+        (1400, 260 * panels as u32 + 50 + 22 * key_lines as u32),
+    )?;
+    let (head, body) = root.split_vertically(40);
+    head.draw(&Text::new(
+        trace.title.clone(),
+        (10, 10),
+        ("sans-serif", 20).into_font(),
+    ))
+    .map_err(err)?;
     let (body, foot) = body.split_vertically(260 * panels as u32);
     let areas = body.split_evenly((panels, 1));
     let t_end = trace.steps.last().map_or(1.0, |s| s.0);
@@ -202,9 +213,9 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
         .draw_series(LineSeries::new(theta, BLACK.stroke_width(1)))
         .map_err(err)?;
     // The key to the shading: each verdict's colour and words.
-    let mut y = 8;
+    let mut y = 4;
     let mut key = vec![(
-        "pending: no verdict yet".to_string(),
+        "pending: no verdict yet; unshaded: trusted".to_string(),
         fill("pending", &labels),
     )];
     key.extend(
@@ -212,15 +223,20 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
             .iter()
             .map(|l| (format!("untrusted: {l}"), fill(l, &labels))),
     );
-    if spans.is_empty() {
-        key = vec![("trusted throughout".to_string(), WHITE.mix(0.0))];
+    if key.len() > KEY_LINES {
+        let more = key.len() - (KEY_LINES - 1);
+        key.truncate(KEY_LINES - 1);
+        key.push((
+            format!("... and {more} more combinations of reasons"),
+            WHITE.mix(0.0),
+        ));
     }
-    for (text, colour) in key.into_iter().take(4) {
+    for (text, colour) in key {
         foot.draw(&Rectangle::new([(10, y), (40, y + 14)], colour.filled()))
             .map_err(err)?;
         foot.draw(&Text::new(text, (50, y), ("sans-serif", 15).into_font()))
             .map_err(err)?;
-        y += 20;
+        y += 22;
     }
     root.present().map_err(err)
 }

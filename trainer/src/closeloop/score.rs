@@ -1,0 +1,103 @@
+//! Step 7 of the loop: each recording scored on its held-out part
+//! ([`forecast`]): the declared model (before), the model with the effect
+//! (after), and the physics at the swings' `w` without and with the
+//! diagnosed terms.
+
+use anyhow::Result;
+use estimator::Model;
+
+use trainer_core::data::{self, Rollout};
+use trainer_core::physics::{Effect, Pendulum};
+
+use super::parts::Part;
+use super::{CloseLoopOptions, RecordingScore, forecast};
+
+/// Step 7 for one recording `part` (`length_physics`: the length its
+/// swings give; `imported`: every recording as imported, `dt` their step):
+/// its held-out errors under the declared model `before`, the model with
+/// the effect `after`, and the physics at gravity `g`, and what each
+/// filter holds before the first held-out forecast.
+pub(super) fn recording(
+    part: &Part,
+    length_physics: f64,
+    imported: &[Rollout],
+    before: &Model<'_>,
+    after: Option<&Model<'_>>,
+    opts: &CloseLoopOptions,
+    dt: f64,
+) -> Result<RecordingScore> {
+    let (rig, g) = (opts.rig, opts.g);
+    let (r, cut, d, source) = (&part.series, part.cut, &part.diagnosis, &part.source);
+    let ctx = |e: anyhow::Error| e.context(format!("{source}: the held-out part"));
+    let score_before = forecast::klm(before, &r.xs, cut, dt).map_err(ctx)?;
+    let first = first_window(&r.xs, cut);
+    let ob = first_window_output(before, first.clone(), &r.xs)?;
+    let a = match after {
+        Some(m) => Some((
+            forecast::klm(m, &r.xs, cut, dt).map_err(ctx)?,
+            first_window_output(m, first.clone(), &r.xs)?,
+        )),
+        None => None,
+    };
+    // The physics at the swings' w (the declared rig's length).
+    let mut p = Pendulum::of(rig, rig.length(g, d.w * d.w));
+    p.g = g;
+    let physics_before = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    p.effects = d
+        .effects
+        .iter()
+        .filter(|e| e.name.is_dynamic())
+        .map(|e| Effect::new(e.name, e.coefficient))
+        .collect();
+    let physics_after = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    Ok(RecordingScore {
+        rollout: r.id,
+        source: source.clone(),
+        steps: [
+            imported
+                .iter()
+                .find(|x| x.id == r.id)
+                .map_or(0, |x| x.xs.len()),
+            r.xs.len() - cut,
+        ],
+        gap_after_s: part.end.gap_after_s,
+        at_rest_after_s: part.end.at_rest_after_s,
+        diagnosis: d.clone(),
+        offset_corrected: part.offset,
+        length_physics,
+        length_before: ob.params[0],
+        trusted_before: ob.trust.is_trusted(),
+        error_before: score_before.median,
+        score_before,
+        length_after: a.as_ref().map(|(_, o)| o.params[0]),
+        coefficient_after: a.as_ref().map(|(_, o)| o.params[1]),
+        trusted_after: a.as_ref().map(|(_, o)| o.trust.is_trusted()),
+        error_after: a.as_ref().map(|(s, _)| s.median),
+        score_after: a.as_ref().map(|(s, _)| *s),
+        physics_before,
+        physics_after,
+    })
+}
+
+/// The measurements the filter sees before the first held-out forecast
+/// (`xs[cut..]` held out): the [`WINDOW`] before `cut`, or the first
+/// [`WINDOW`] where the first part is shorter.
+///
+/// [`WINDOW`]: trainer_core::protocol::WINDOW
+pub(super) fn first_window(xs: &[[f64; 2]], cut: usize) -> std::ops::Range<usize> {
+    let n = trainer_core::protocol::WINDOW.min(xs.len());
+    let end = cut.clamp(n, xs.len());
+    end - n..end
+}
+
+/// The filter's output after the measurements `xs[window]`.
+fn first_window_output(
+    model: &Model<'_>,
+    window: std::ops::Range<usize>,
+    xs: &[[f64; 2]],
+) -> Result<estimator::StepOutput> {
+    Ok(estimator::filter::run(
+        &mut estimator::Estimator::new(model).at_trained_gravity(),
+        &data::states_f32(&xs[window]),
+    )?)
+}
