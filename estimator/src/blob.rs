@@ -23,8 +23,10 @@
 //!
 //! Format 8 added the rig's geometry ([`Body::rig`], [`Rig`]): which
 //! length the first parameter is (a string's or a rod's), so that every
-//! report can name it. A format-7 blob is a rod's; `koopman calibrate`
-//! upgrades it.
+//! report can name it; and the model family ([`Body::family`],
+//! [`Family`]): the paper's linear `F`, or a bilinear `F(q)` whose
+//! frequencies move with the parameters (see "The bilinear arena"). A
+//! format-7 blob is a rod's, linear; `koopman calibrate` upgrades it.
 //!
 //! Format 7 added the largest unevenness of the swing the verdict trusts
 //! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
@@ -54,6 +56,15 @@
 //! and an input that is zero (half of them after a ReLU) is skipped.
 //! [`layer_span`], [`F_AT`], [`B_AT`], [`SCHEDULE_AT`] and [`arena_len`]
 //! give the offsets.
+//!
+//! # The bilinear arena
+//! A [`Family::Bilinear`] blob holds, after the encoder and decoder (at
+//! [`F_AT`]), [`BILINEAR_BLOCKS`] matrices of [`LATENT_DIM`] square,
+//! row-major: `F_0`, `F_1`, `F_2`, `F_11`, so that
+//! `y' = F(q) y`, `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11` with `q`
+//! the parameters' coordinates (static). Nothing follows them: no `B`
+//! and no gain schedule (the extended filter's gains depend on the
+//! state), so [`FilterSpec::schedule_steps`] is 0.
 //!
 //! # The gain schedule
 //! The filter's covariance recursion does not depend on the measurements:
@@ -229,6 +240,27 @@ pub const fn arena_len(steps: u16) -> usize {
     SCHEDULE_AT + steps * SCHEDULE_STEP_LEN + tail
 }
 
+/// Matrices of a bilinear arena: `F_0`, `F_1`, `F_2`, `F_11`.
+pub const BILINEAR_BLOCKS: usize = 4;
+/// Values of one bilinear matrix.
+pub const BILINEAR_BLOCK_LEN: usize = LATENT_DIM * LATENT_DIM;
+/// Length of a bilinear arena, in `f32`s.
+pub const BILINEAR_ARENA_LEN: usize = F_AT + BILINEAR_BLOCKS * BILINEAR_BLOCK_LEN;
+
+/// Which Koopman model a blob holds: how `[y; p]` advances.
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// The paper's: one augmented matrix `F` ([`AUG_DIM`] square, its
+    /// parameter rows the identity), `y' = A y + C p`. Its frequencies are
+    /// `A`'s eigenvalues, the same for every `p`: a family whose frequency
+    /// moves with the parameter is a blend of fixed modes.
+    Linear,
+    /// Parameter-varying: `y' = F(q) y`, `F(q) = F_0 + q_1 F_1 + q_2 F_2 +
+    /// q_1^2 F_11` (see "The bilinear arena"); its frequencies move with
+    /// `q`. The filter is an extended Kalman filter over `[y; q]`.
+    Bilinear,
+}
+
 /// Where layer `k` of `net` lies in the arena, in `f32`s:
 /// `(weight offset, d_in, d_out)`; its bias follows the weight at
 /// `offset + d_in * d_out`. `None` for `k >= N_LAYERS`.
@@ -278,6 +310,15 @@ pub enum Reading {
     /// least-squares fit of `F` as a nearly constant column, nearly
     /// collinear with the length's.
     Centred,
+    /// `q` affine in `1 / p`, `-1` at `lo` and `+1` at `hi`:
+    /// `q = (1/lo + 1/hi - 2/p) / (1/lo - 1/hi)`, so
+    /// `p = 2 / (1/lo + 1/hi - q (1/lo - 1/hi))`. A pendulum's `w^2`
+    /// scaled to `[-1, 1]` over the training range (the bilinear family's
+    /// length). Needs `0 < lo < hi`.
+    ReciprocalUnit,
+    /// `q` affine in `p`, `-1` at `lo` and `+1` at `hi`:
+    /// `q = (2 p - lo - hi) / (hi - lo)`. Needs `lo < hi`.
+    Unit,
 }
 
 /// One physical parameter carried in the filter state.
@@ -311,7 +352,22 @@ impl ParamSpec<'_> {
                 lo * hi / (lo + hi - q)
             }
             Reading::Centred => q + self.middle(),
+            Reading::ReciprocalUnit => {
+                let (sum, diff) = self.reciprocals();
+                2.0 / (sum - q * diff)
+            }
+            Reading::Unit => {
+                let [lo, hi] = self.train_range;
+                0.5 * (lo + hi + q * (hi - lo))
+            }
         }
+    }
+
+    /// `(1/lo + 1/hi, 1/lo - 1/hi)`.
+    #[inline]
+    fn reciprocals(&self) -> (f32, f32) {
+        let [lo, hi] = self.train_range;
+        (1.0 / lo + 1.0 / hi, 1.0 / lo - 1.0 / hi)
     }
 
     /// The middle of the training range, `(lo + hi) / 2`.
@@ -330,6 +386,15 @@ impl ParamSpec<'_> {
                 let [lo, hi] = self.train_range;
                 let d = lo + hi - q;
                 lo * hi / (d * d)
+            }
+            Reading::ReciprocalUnit => {
+                let (sum, diff) = self.reciprocals();
+                let d = sum - q * diff;
+                2.0 * diff / (d * d)
+            }
+            Reading::Unit => {
+                let [lo, hi] = self.train_range;
+                0.5 * (hi - lo)
             }
         }
     }
@@ -355,6 +420,14 @@ impl ParamSpec<'_> {
                 lo + hi - lo * hi / p
             }
             Reading::Centred => p - self.middle(),
+            Reading::ReciprocalUnit => {
+                let (sum, diff) = self.reciprocals();
+                (sum - 2.0 / p) / diff
+            }
+            Reading::Unit => {
+                let [lo, hi] = self.train_range;
+                (2.0 * p - lo - hi) / (hi - lo)
+            }
         }
     }
 
@@ -365,6 +438,8 @@ impl ParamSpec<'_> {
         }
         match self.reading {
             Reading::Reciprocal if !(lo > 0.0 && lo <= hi) => Err(Error::BlobBadReading),
+            Reading::ReciprocalUnit if !(lo > 0.0 && lo < hi) => Err(Error::BlobBadReading),
+            Reading::Unit if lo >= hi => Err(Error::BlobBadReading),
             _ => Ok(()),
         }
     }
@@ -563,6 +638,8 @@ pub struct Body<'a> {
     pub g: f32,
     /// The rig whose length the first parameter is (format 8).
     pub rig: Rig,
+    /// How `[y; p]` advances (format 8).
+    pub family: Family,
     /// Hidden activation of both MLPs.
     pub activation: Activation,
     /// Normalisation offset `mu` (`x_n = (x - mu) / s`).
@@ -591,13 +668,29 @@ impl<'a> Body<'a> {
     pub fn span(&self, at: usize, len: usize) -> F32s<'a> {
         F32s(self.weights.0.get(at * 4..(at + len) * 4).unwrap_or(&[]))
     }
-    /// `F`, row-major.
+    /// `F`, row-major (empty for a bilinear blob).
     pub fn f(&self) -> F32s<'a> {
-        self.span(F_AT, AUG_DIM * AUG_DIM)
+        match self.family {
+            Family::Linear => self.span(F_AT, AUG_DIM * AUG_DIM),
+            Family::Bilinear => F32s(&[]),
+        }
     }
-    /// `B`, row-major.
+    /// Bilinear matrix `k` (`F_0`, `F_1`, `F_2`, `F_11` for `k = 0..4`),
+    /// row-major; empty for a linear blob or `k` out of range.
+    pub fn bilinear(&self, k: usize) -> F32s<'a> {
+        match self.family {
+            Family::Bilinear if k < BILINEAR_BLOCKS => {
+                self.span(F_AT + k * BILINEAR_BLOCK_LEN, BILINEAR_BLOCK_LEN)
+            }
+            _ => F32s(&[]),
+        }
+    }
+    /// `B`, row-major (empty for a bilinear blob).
     pub fn b(&self) -> F32s<'a> {
-        self.span(B_AT, AUG_DIM * INPUT_DIM)
+        match self.family {
+            Family::Linear => self.span(B_AT, AUG_DIM * INPUT_DIM),
+            Family::Bilinear => F32s(&[]),
+        }
     }
     /// Scheduled update `n` (`1..=schedule_steps`): `K_n^T` ([`LATENT_DIM`]
     /// rows of [`AUG_DIM`]) and the parameters' standard deviations after
@@ -704,7 +797,13 @@ impl<'a> Blob<'a> {
         if b.pad.len() > 3 || b.pad.iter().any(|v| *v != 0) {
             return Err(Error::BlobMisaligned);
         }
-        b.weights.check(arena_len(b.filter.schedule_steps))?;
+        let len = match b.family {
+            Family::Linear => arena_len(b.filter.schedule_steps),
+            // The extended filter's gains depend on the state: no schedule.
+            Family::Bilinear if b.filter.schedule_steps == 0 => BILINEAR_ARENA_LEN,
+            Family::Bilinear => return Err(Error::BlobShapeMismatch),
+        };
+        b.weights.check(len)?;
         // The filter treats the parameters as static: their rows of F must
         // be the identity.
         let param_rows_identity =

@@ -1,7 +1,10 @@
 //! The model read from a blob: normalisation, encoder `phi`, decoder
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
-use crate::blob::{Activation, Blob, Net, SCHEDULE_AT, SCHEDULE_STEP_LEN, layer_span};
+use crate::blob::{
+    Activation, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F_AT, Family, Net, SCHEDULE_AT,
+    SCHEDULE_STEP_LEN, layer_span,
+};
 use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
 
 #[cfg(target_endian = "big")]
@@ -107,6 +110,9 @@ impl<'a> Tail<'a> {
     }
 }
 
+/// A [`LATENT_DIM`] square matrix, row-major, read in place.
+pub type LatentRows = [[f32; LATENT_DIM]; LATENT_DIM];
+
 /// A validated model whose weights stay in the bytes it was read from.
 ///
 /// Only the latent rows of `F` are copied out of the blob, by rows and by
@@ -122,6 +128,8 @@ pub struct Model<'a> {
     decoder: Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
     c: KoopmanRows,
     ct: KoopmanColumns,
+    /// `F_0, F_1, F_2, F_11` of a bilinear blob, in place.
+    bilinear: Option<[&'a LatentRows; BILINEAR_BLOCKS]>,
 }
 
 #[inline(always)]
@@ -228,7 +236,18 @@ impl<'a> Model<'a> {
             bytemuck::try_cast_slice(blob.body.weights.0).map_err(|_| Error::BlobMisaligned)?;
         let encoder = Mlp::from_arena(arena, Net::Encoder)?;
         let decoder = Mlp::from_arena(arena, Net::Decoder)?;
-        let c: KoopmanRows = *rows(arena, crate::blob::F_AT)?;
+        let bilinear = match blob.body.family {
+            Family::Linear => None,
+            Family::Bilinear => {
+                let block =
+                    |k: usize| rows::<LATENT_DIM, LATENT_DIM>(arena, F_AT + k * BILINEAR_BLOCK_LEN);
+                Some([block(0)?, block(1)?, block(2)?, block(3)?])
+            }
+        };
+        let c: KoopmanRows = match bilinear {
+            None => *rows(arena, F_AT)?,
+            Some(_) => [[0.0; AUG_DIM]; LATENT_DIM],
+        };
         let mut ct = [[0.0; LATENT_DIM]; AUG_DIM];
         for (i, row) in c.iter().enumerate() {
             for (col, v) in ct.iter_mut().zip(row) {
@@ -254,7 +273,45 @@ impl<'a> Model<'a> {
             decoder,
             c,
             ct,
+            bilinear,
         })
+    }
+
+    /// The model's family.
+    #[inline]
+    pub fn family(&self) -> Family {
+        self.blob.body.family
+    }
+
+    /// The bilinear family's latent step at `g = [y; q]` and its Jacobian:
+    /// `y' = F(q) y` with `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11`,
+    /// and the latent rows of `d y' / d g`, `[F(q), (F_1 + 2 q_1 F_11) y,
+    /// F_2 y]`. `None` for a linear model (whose rows are
+    /// [`Model::koopman_rows`], the same at every `g`).
+    pub fn bilinear_step(&self, g: &Aug) -> Option<(Latent, KoopmanRows)> {
+        let [f0, f1, f2, f11] = self.bilinear?;
+        let (y, q) = g.split_first_chunk::<LATENT_DIM>()?;
+        let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
+        let q11 = q1 * q1;
+        let mut next = [0.0f32; LATENT_DIM];
+        let mut jac = [[0.0f32; AUG_DIM]; LATENT_DIM];
+        let dot = |row: &[f32; LATENT_DIM]| row.iter().zip(y).fold(0.0f32, |a, (w, v)| a + w * v);
+        for (i, (n, jrow)) in next.iter_mut().zip(jac.iter_mut()).enumerate() {
+            let (r0, r1, r2, r11) = (f0.get(i)?, f1.get(i)?, f2.get(i)?, f11.get(i)?);
+            let (u0, u1, u2, u11) = (dot(r0), dot(r1), dot(r2), dot(r11));
+            *n = ((u0 + q1 * u1) + q2 * u2) + q11 * u11;
+            for (d, (((a, b), c), e)) in jrow.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
+                *d = ((a + q1 * b) + q2 * c) + q11 * e;
+            }
+            let (dq1, dq2) = (u1 + 2.0 * q1 * u11, u2);
+            if let Some(d) = jrow.get_mut(LATENT_DIM) {
+                *d = dq1;
+            }
+            if let Some(d) = jrow.get_mut(LATENT_DIM + 1) {
+                *d = dq2;
+            }
+        }
+        Some((next, jac))
     }
 
     /// The latent rows of `F`.
@@ -348,11 +405,17 @@ impl<'a> Model<'a> {
         self.blob.body.f().get(i * AUG_DIM + j).unwrap_or(0.0)
     }
 
-    /// One step of the augmented linear model: `g' = F g`, that is
-    /// `y' = C g` and `p' = p` (the parameter rows of `F` are the
-    /// identity).
+    /// One step of the augmented model, `p' = p`: for the linear family
+    /// `g' = F g`, that is `y' = C g` (the parameter rows of `F` are the
+    /// identity); for the bilinear `y' = F(q) y` ([`Model::bilinear_step`]).
     pub fn advance(&self, g: &Aug) -> Aug {
         let mut out = *g;
+        if let Some((y, _)) = self.bilinear_step(g) {
+            for (o, v) in out.iter_mut().zip(&y) {
+                *o = *v;
+            }
+            return out;
+        }
         for (o, row) in out.iter_mut().zip(&self.c) {
             *o = row.iter().zip(g).fold(0.0, |acc, (w, x)| acc + w * x);
         }

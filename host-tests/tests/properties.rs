@@ -63,6 +63,35 @@ proptest! {
         prop_assert!(spec.slope(q) > 0.0);
     }
 
+    /// The bilinear family's readings: a unit reciprocal reading (a
+    /// length, `q` affine in `1 / p`) and a unit reading (a damping, `q`
+    /// affine in `p`) are `-1` and `+1` at the ends of the range and invert
+    /// their coordinates; the slope is `dp/dq` (a central difference of
+    /// the reading over `q +- 1e-3`). Lengths of 0.05 to 10, ranges up to
+    /// 30 wide, values within a factor 2 of the range: the round trip
+    /// divides and subtracts numbers up to `2 / lo`, a relative error of a
+    /// few `1e-7 * hi / lo <= 3e-5`; the tolerance is 1e-4. The slope's
+    /// central difference errs by `O(1e-6)` of the slope (curvature) plus
+    /// `ulp(p) / 1e-3` (rounding, up to 1e-3 of it); the tolerance 1e-2.
+    #[test]
+    fn the_unit_readings_invert_their_coordinates(
+        lo in 0.05f32..10.0,
+        ratio in 1.1f32..30.0,
+        at in 0.0f32..1.0,
+    ) {
+        use estimator::blob::{ParamSpec, Reading};
+        let hi = lo * ratio;
+        for reading in [Reading::ReciprocalUnit, Reading::Unit] {
+            let spec = ParamSpec { name: "length", declared: true, train_range: [lo, hi], reading, scales_with_g: true };
+            prop_assert!((spec.coordinate(lo) + 1.0).abs() < 1e-4 && (spec.coordinate(hi) - 1.0).abs() < 1e-4);
+            let p = lo / 2.0 + at * (2.0 * hi - lo / 2.0);
+            let q = spec.coordinate(p);
+            prop_assert!((spec.read(q) - p).abs() <= 1e-4 * p, "{reading:?}: {} vs {}", spec.read(q), p);
+            let fd = (spec.read(q + 1e-3) - spec.read(q - 1e-3)) / 2e-3;
+            prop_assert!((fd - spec.slope(q)).abs() <= 1e-2 * spec.slope(q), "{reading:?}: {fd} vs {}", spec.slope(q));
+        }
+    }
+
     /// A centred reading and its coordinate are inverses, the middle of
     /// the range is coordinate 0, and the slope is 1. Coefficients of
     /// either sign up to 10 in size, ranges up to 10 wide: the round trip

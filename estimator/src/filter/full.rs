@@ -7,7 +7,21 @@ use super::kernels::{
     unit_lower_inverse, upper_rows,
 };
 use crate::blob::FilterSpec;
+use crate::model::{KoopmanColumns, KoopmanRows};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
+
+/// `C^T` of the rows `c`.
+fn columns(c: &KoopmanRows) -> KoopmanColumns {
+    let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
+    for (i, row) in c.iter().enumerate() {
+        for (col, v) in ct.iter_mut().zip(row) {
+            if let Some(d) = col.get_mut(i) {
+                *d = *v;
+            }
+        }
+    }
+    ct
+}
 
 /// The prior `P`: `diag(prior_var)`.
 pub(super) fn prior_covariance(spec: &FilterSpec) -> Cov {
@@ -40,11 +54,21 @@ impl Estimator<'_> {
     /// and `P = F P F^T + Q` from the given `p`, by blocks with
     /// `F = [C; 0 I]`: `N = C P`, `P_yy = N C^T + Q_y`, `P_yp = N_p`,
     /// `P_pp = P_pp + Q_p`.
+    ///
+    /// For the bilinear family `C` is the Jacobian's latent rows at the
+    /// mean ([`crate::Model::bilinear_step`]) and `y = F(q) y`: the
+    /// extended filter's prediction.
     pub(super) fn predict_only(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
         let spec = &self.model.blob().body.filter;
-        let c = self.model.koopman_rows();
+        let local = self.model.bilinear_step(&self.g);
+        let (y, c) = match &local {
+            Some((y, c)) => (*y, c),
+            None => (
+                combo(self.g.iter().copied().zip(self.model.koopman_columns())),
+                self.model.koopman_rows(),
+            ),
+        };
         let mut g = self.g;
-        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
         for (gi, yi) in g.iter_mut().zip(&y) {
             *gi = *yi;
         }
@@ -88,14 +112,42 @@ impl Estimator<'_> {
     /// selection, `P` symmetric, `R` diagonal. Every product is written as
     /// rows accumulated from scaled rows ([`combo`]), which a vector unit
     /// runs lane-parallel and which keeps each sum in a fixed order.
+    ///
+    /// The bilinear family runs the same recursion as an extended filter:
+    /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
+    /// mean ([`crate::Model::bilinear_step`]).
     pub(super) fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
-        let spec = &self.model.blob().body.filter;
-        let c = self.model.koopman_rows();
-        let ct = self.model.koopman_columns();
+        match self.model.bilinear_step(&self.g) {
+            None => {
+                let (y, nu) = self.predict_latent(z);
+                let (c, ct) = (self.model.koopman_rows(), self.model.koopman_columns());
+                self.predict_update_with(z, (c, ct), y, nu)
+            }
+            Some((y, c)) => {
+                let mut nu = *z;
+                for (v, yi) in nu.iter_mut().zip(&y) {
+                    *v -= yi;
+                }
+                self.predict_update_with(z, (&c, &columns(&c)), y, nu)
+            }
+        }
+    }
 
-        // Predict the mean: y' = C g;  p' = p.
+    /// [`Estimator::predict_update`] with the latent rows `C` of the
+    /// transition (and their transpose), the predicted latent `y` and the
+    /// innovation `nu = z - y`.
+    #[inline(always)]
+    fn predict_update_with(
+        &self,
+        z: &Latent,
+        (c, ct): (&KoopmanRows, &KoopmanColumns),
+        y: Latent,
+        nu: Latent,
+    ) -> Result<(Aug, Cov), Error> {
+        let spec = &self.model.blob().body.filter;
+
+        // Predict the mean: y' = C g (or F(q) y);  p' = p.
         let mut g = self.g;
-        let (y, nu) = self.predict_latent(z);
         for (gi, yi) in g.iter_mut().zip(&y) {
             *gi = *yi;
         }

@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use estimator::blob::{
-    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, FilterSpec, Header, ParamSpec, Rig,
-    TrustSpec,
+    Activation, Blob, Body, Envelope, F32s, FORMAT_VERSION, Family, FilterSpec, Header, ParamSpec,
+    Rig, TrustSpec,
 };
 use estimator::{PARAM_DIM, STATE_DIM};
 use serde::Deserialize;
@@ -175,7 +175,7 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
 }
 
 /// A current body from an older blob's parts; every blob before format 8
-/// is a rod's.
+/// is a rod's, and linear.
 #[allow(clippy::too_many_arguments)]
 fn body<'a>(
     dt: f32,
@@ -191,6 +191,7 @@ fn body<'a>(
         dt,
         g,
         rig: Rig::Rod,
+        family: Family::Linear,
         activation,
         norm_mu,
         norm_s,

@@ -97,6 +97,7 @@ impl BlobParts {
                 dt: cfg.dt as f32,
                 g: cfg.g as f32,
                 rig: cfg.rig,
+                family: estimator::blob::Family::Linear,
                 activation: cfg.activation,
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),
