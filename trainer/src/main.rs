@@ -64,6 +64,10 @@ enum Cmd {
     /// paper's figures beside ours.
     #[command(after_help = cli::EXIT_CODES)]
     Evaluate(cli::evaluate::Args),
+    /// Holds a blob for real rigs to lab-like recordings it has not seen:
+    /// how often its length is right, and trusted.
+    #[command(after_help = cli::EXIT_CODES)]
+    LabCheck(cli::lab_check::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -78,6 +82,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Diagnose(a) => cli::diagnose::run(a),
         Cmd::CloseLoop(a) => cli::close_loop::run(a),
         Cmd::Evaluate(a) => cli::evaluate::run(a),
+        Cmd::LabCheck(a) => cli::lab_check::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -2,8 +2,10 @@
 //! of its checks and the scale of the reported standard deviations, set on
 //! held-out rollouts from the blob's declared operating range (lengths
 //! uniform in the first parameter's training range, released from rest at
-//! the protocol's [`THETA0`], at the blob's gravity and interval;
-//! seeds distinct from the training set's and the test set's).
+//! the protocol's [`THETA0`], at the blob's gravity and interval; or, for
+//! a blob trained on lab-like recordings, drawn as its training set was,
+//! [`CalibrateConfig::lab`]; seeds distinct from the training set's and
+//! the test set's).
 //!
 //! Three disjoint sets, each from its own seed:
 //! 1. **map** ([`CalibrateConfig::map_rollouts`], [`WINDOW`] steps): the
@@ -43,8 +45,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::data::drawn::{DrawnSet, LabDraw, drawn_set};
 use crate::data::states_f32;
-use crate::physics::Pendulum;
+use crate::physics::{EffectRange, Pendulum};
 use crate::protocol::{THETA0, WINDOW};
 
 /// How the calibration runs; saved beside the blob with its results.
@@ -94,6 +97,21 @@ pub struct CalibrateConfig {
     /// rollouts read about 0.003 (the sampled turning points); a threshold
     /// set by them alone would flag the noise of every real recording.
     pub unevenness_floor: f64,
+    /// Held-out rollouts drawn lab-like (as a blob trained on
+    /// `data::drawn` sets was trained), instead of the protocol's.
+    pub lab: Option<LabHeldOut>,
+}
+
+/// How lab-like held-out rollouts are drawn: the training set's ranges
+/// and recording (the lengths are the blob's training range).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct LabHeldOut {
+    /// Release angles, rad, log-uniform.
+    pub theta0: [f64; 2],
+    /// The effect, its coefficient uniform over its range.
+    pub effect: Option<EffectRange>,
+    /// How they are recorded (its `rollouts` is set per set).
+    pub draw: LabDraw,
 }
 
 impl Default for CalibrateConfig {
@@ -115,6 +133,7 @@ impl Default for CalibrateConfig {
             swing_share: 0.1,
             unevenness_alpha: 0.01,
             unevenness_floor: 0.05,
+            lab: None,
         }
     }
 }
@@ -185,10 +204,46 @@ struct Rig {
     g: f64,
 }
 
-/// `n` rollouts of `steps` measurements from the declared operating range.
-fn held_out(lengths: [f32; 2], rig: Rig, n: usize, steps: usize, seed: u64) -> Vec<Held> {
+/// `n` rollouts of `steps` measurements from the declared operating range:
+/// the protocol's, or lab-like as `lab` says.
+fn held_out(
+    lengths: [f32; 2],
+    rig: Rig,
+    n: usize,
+    steps: usize,
+    seed: u64,
+    lab: Option<&LabHeldOut>,
+) -> Result<Vec<Held>> {
+    if let Some(lab) = lab {
+        let draw = LabDraw {
+            rollouts: n,
+            ..lab.draw.clone()
+        };
+        let ds = drawn_set(
+            seed,
+            "held-out",
+            &DrawnSet {
+                rig: rig.geometry,
+                lengths: lengths.map(f64::from),
+                theta0: lab.theta0,
+                effect: lab.effect.as_ref(),
+                dt: rig.dt,
+                steps,
+                draw: &draw,
+            },
+        )?;
+        return Ok(ds
+            .rollouts
+            .iter()
+            .zip(&ds.sidecar.rollouts)
+            .map(|(r, m)| Held {
+                length: m.length,
+                xs: states_f32(&r.xs),
+            })
+            .collect());
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n)
+    Ok((0..n)
         .map(|_| {
             let length = rng.random_range(f64::from(lengths[0])..=f64::from(lengths[1]));
             let theta0 = rng.random_range(THETA0[0]..=THETA0[1]);
@@ -199,7 +254,7 @@ fn held_out(lengths: [f32; 2], rig: Rig, n: usize, steps: usize, seed: u64) -> V
                 xs: states_f32(&p.rollout([theta0, 0.0], steps, rig.dt)),
             }
         })
-        .collect()
+        .collect())
 }
 
 /// A trust section that passes everything (a full map, no range, no
@@ -351,7 +406,14 @@ pub fn calibrate(
     let per_bin = usize::from(cfg.theta_cells) * usize::from(cfg.rate_cells);
     let [lo_l, hi_l] = spec.train_range;
     let widened = [lo_l * (1.0 - cfg.map_margin), hi_l * (1.0 + cfg.map_margin)];
-    for r in held_out(widened, rig, cfg.map_rollouts, MAP_STEPS, cfg.seed) {
+    for r in held_out(
+        widened,
+        rig,
+        cfg.map_rollouts,
+        MAP_STEPS,
+        cfg.seed,
+        cfg.lab.as_ref(),
+    )? {
         let mut est = Estimator::new(&m).at_trained_gravity();
         let mut seen = Vec::with_capacity(r.xs.len());
         for (n, x) in r.xs.iter().enumerate() {
@@ -386,7 +448,8 @@ pub fn calibrate(
         cfg.rollouts,
         cfg.long_steps,
         cfg.seed + 1,
-    );
+        cfg.lab.as_ref(),
+    )?;
     let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
     let mut swings = vec![];
     let mut uneven = vec![];
@@ -449,7 +512,8 @@ pub fn calibrate(
         cfg.rollouts,
         cfg.long_steps,
         cfg.seed + 2,
-    ) {
+        cfg.lab.as_ref(),
+    )? {
         let (a, b) = checkpoints(&m, &r.xs)?;
         for (fig, out) in check.iter_mut().zip([&a, &b]) {
             fig.add(out, r.length, cfg.accurate);

@@ -19,6 +19,7 @@ pub mod calibrate;
 pub mod data;
 pub mod diagnose;
 pub mod io;
+pub mod labcheck;
 pub mod metrics;
 pub mod physics;
 pub mod plot;

@@ -207,9 +207,11 @@ fn body<'a>(
 pub fn run(a: Args) -> Result<()> {
     let bytes = std::fs::read(&a.blob).with_context(|| a.blob.display().to_string())?;
     let bytes = current_format(&bytes, &a.blob)?;
+    // Held-out rollouts as the blob's training set was drawn (its
+    // sidecar's config; the protocol's without one).
     let cfg = CalibrateConfig {
         seed: a.seed,
-        ..CalibrateConfig::default()
+        ..trainer::export::calibration_for(&trainer::export::config_of(&a.blob))
     };
     let (out_bytes, report) = trainer::export::calibrate_with_progress(&bytes, &cfg)?;
     let out = a.out.unwrap_or(a.blob.clone());

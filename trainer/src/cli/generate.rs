@@ -20,6 +20,10 @@ pub struct Args {
     /// Training lengths, m.
     #[arg(long, value_delimiter = ',', default_value = "2,5")]
     lengths: Vec<f64>,
+    /// The rig the lengths are of: `rod` (the protocol's uniform rod) or
+    /// `simple` (a bob on a string).
+    #[arg(long, default_value = "rod", value_parser = super::rig)]
+    rig: trainer_core::physics::Rig,
     /// Training rollouts per length.
     #[arg(long, default_value_t = 200)]
     rollouts: usize,
@@ -40,8 +44,20 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(seed) = a.lab {
         return lab(seed, &a.out);
     }
-    let train = data::training_set(a.seed, &a.lengths, a.rollouts, &a.effect);
-    let test = data::test_set(a.seed, &TEST_LENGTHS, &a.effect);
+    let physics = data::Physics {
+        rig: a.rig,
+        ..data::Physics::PROTOCOL
+    };
+    let train = data::training_set_with(
+        a.seed,
+        &a.lengths,
+        a.rollouts,
+        &a.effect,
+        physics,
+        trainer_core::protocol::THETA0,
+        None,
+    );
+    let test = data::test_set_with(a.seed, &TEST_LENGTHS, &a.effect, physics);
     let p = data::write(&train, &a.out, "train")?;
     let q = data::write(&test, &a.out, "test")?;
     super::say(&format!(

@@ -17,6 +17,7 @@ pub mod evaluate;
 pub mod export;
 pub mod generate;
 pub mod import;
+pub mod lab_check;
 pub mod train;
 
 /// Exit status and its meaning, as `--help` states them.

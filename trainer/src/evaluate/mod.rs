@@ -155,7 +155,7 @@ pub fn train_seed(
             }
         }
         match kind {
-            ModelKind::Klm => {
+            ModelKind::Klm | ModelKind::Bilinear => {
                 export::export(&run, &w.klm)?;
             }
             ModelKind::Cbm => {
@@ -177,7 +177,7 @@ pub fn seed_of(blob: &Path) -> u64 {
 
 /// The training set a blob was trained on, from its sidecar's config
 /// (the default config when the sidecar is missing).
-pub fn training_set_of(blob: &Path) -> Dataset {
+pub fn training_set_of(blob: &Path) -> Result<Dataset> {
     training_data(&export::config_of(blob))
 }
 
@@ -244,7 +244,7 @@ fn write_outputs(
         Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", w.klm.display()))?;
     figures::phase_portraits(
         &dir.join("phase_portraits.png"),
-        &training_set_of(&w.klm),
+        &training_set_of(&w.klm)?,
         test,
     )?;
     b.inc(1);

@@ -41,7 +41,9 @@ pub fn export_baseline(dir: &Path, out: &Path) -> Result<BaselineInfo> {
     match cfg.model {
         ModelKind::Cbm => drop(load_model::<Klm>(&paths, &cfg, &device)?),
         ModelKind::Mlp => drop(load_model::<Regressor>(&paths, &cfg, &device)?),
-        ModelKind::Klm => anyhow::bail!("{}: a KLM run exports to a blob", dir.display()),
+        ModelKind::Klm | ModelKind::Bilinear => {
+            anyhow::bail!("{}: a Koopman run exports to a blob", dir.display())
+        }
     }
     let bytes = std::fs::read(&paths.model)?;
     write_atomic(out, &bytes)?;

@@ -3,7 +3,10 @@
 
 use anyhow::Result;
 use burn::nn::Linear;
-use estimator::blob::{Blob, Body, F32s, FilterSpec, Header, ParamSpec, SCHEDULE_AT, TrustSpec};
+use estimator::blob::{
+    BILINEAR_ARENA_LEN, Blob, Body, F32s, Family, FilterSpec, Header, ParamSpec, SCHEDULE_AT,
+    TrustSpec,
+};
 use estimator::{AUG_DIM, INPUT_DIM, PARAM_DIM};
 
 use super::schedule::{ScheduleCheck, gain_schedule};
@@ -39,9 +42,11 @@ pub fn linear_to_blob(l: &Linear) -> (usize, usize, Vec<f32>, Vec<f32>) {
     (d_in, d_out, w, b)
 }
 
-/// The weight arena a [`Blob`] borrows from, as little-endian bytes.
+/// The weight arena a [`Blob`] borrows from, as little-endian bytes, and
+/// the family whose layout it has.
 pub struct BlobParts {
     arena: Vec<u8>,
+    family: Family,
 }
 
 impl BlobParts {
@@ -60,7 +65,30 @@ impl BlobParts {
         arena.extend([0.0; AUG_DIM * INPUT_DIM]);
         BlobParts {
             arena: le_bytes(&arena),
+            family: Family::Linear,
         }
+    }
+
+    /// The bilinear family's arena (see `estimator::blob`, "The bilinear
+    /// arena"): encoder and decoder layers, then `F_0, F_1, F_2, F_11`
+    /// (`blocks`, each row-major).
+    pub fn bilinear(enc: &Mlp, dec: &Mlp, blocks: &[f32]) -> Self {
+        let mut arena: Vec<f32> = Vec::with_capacity(BILINEAR_ARENA_LEN);
+        for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
+            let (_, _, w, b) = linear_to_blob(l);
+            arena.extend(w);
+            arena.extend(b);
+        }
+        arena.extend_from_slice(blocks);
+        BlobParts {
+            arena: le_bytes(&arena),
+            family: Family::Bilinear,
+        }
+    }
+
+    /// The family of the arena.
+    pub fn family(&self) -> Family {
+        self.family
     }
 
     /// `F` (row-major) as stored in the arena.
@@ -76,6 +104,10 @@ impl BlobParts {
     /// `schedule_steps` updates, from [`gain_schedule`]); a blob must be
     /// made with the same `filter`.
     pub fn set_schedule(&mut self, filter: &FilterSpec) -> Result<ScheduleCheck> {
+        anyhow::ensure!(
+            self.family == Family::Linear,
+            "a gain schedule is for the linear family (the extended filter's gains depend on the state)"
+        );
         let (schedule, check) = gain_schedule(&self.f(), filter)?;
         self.arena.truncate(SCHEDULE_AT * 4);
         self.arena.extend(le_bytes(&schedule));
@@ -97,7 +129,7 @@ impl BlobParts {
                 dt: cfg.dt as f32,
                 g: cfg.g as f32,
                 rig: cfg.rig,
-                family: estimator::blob::Family::Linear,
+                family: self.family,
                 activation: cfg.activation,
                 norm_mu: norm.mu.map(|v| v as f32),
                 norm_s: norm.s.map(|v| v as f32),

@@ -16,10 +16,12 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use estimator::blob::FilterSpec;
+use estimator::blob::{Family, FilterSpec};
 use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model, PARAM_DIM};
 use serde::Serialize;
-use trainer_core::calibrate::{CalibrateConfig, Calibration, calibrate, map_bytes, permissive};
+use trainer_core::calibrate::{
+    CalibrateConfig, Calibration, LabHeldOut, calibrate, map_bytes, permissive,
+};
 use trainer_core::data::states_f32;
 use trainer_core::io::write_atomic;
 use trainer_core::protocol::{BURN_IN, WINDOW};
@@ -29,11 +31,12 @@ pub mod blob;
 pub mod refit;
 pub mod schedule;
 
+use crate::learn::bilinear::Bilinear;
 use crate::learn::config::{ModelKind, TrainConfig};
 use crate::learn::model::Klm;
 use crate::learn::run::{self, RunPaths, device, load_model, training_data};
 use blob::{BlobParts, blob_bytes};
-use refit::global_koopman;
+use refit::{global_bilinear, global_koopman};
 use schedule::ScheduleCheck;
 
 /// What an export measured, saved beside the blob.
@@ -57,8 +60,9 @@ pub struct ExportInfo {
     pub blob_bytes: usize,
     /// Updates in the blob's gain schedule.
     pub schedule_steps: u16,
-    /// How the schedule and its tail were checked.
-    pub schedule_check: ScheduleCheck,
+    /// How the schedule and its tail were checked (`None`: no schedule,
+    /// the bilinear family's extended filter).
+    pub schedule_check: Option<ScheduleCheck>,
     /// How the trust verdict was calibrated, and what it does on held-out
     /// rollouts (`trainer_core::calibrate`).
     pub trust: Calibration,
@@ -186,7 +190,7 @@ struct Prepared {
 /// A draft blob's filter and what setting it measured.
 struct Draft {
     filter: FilterSpec,
-    schedule_check: ScheduleCheck,
+    schedule_check: Option<ScheduleCheck>,
     sigmas: Vec<f32>,
 }
 
@@ -195,16 +199,25 @@ impl Prepared {
         let paths = RunPaths::new(dir);
         let (cfg, state) = run::read(dir)?;
         anyhow::ensure!(
-            cfg.model == ModelKind::Klm,
+            cfg.model.is_koopman_blob(),
             "{}: a {:?} run exports with export_baseline",
             dir.display(),
             cfg.model
         );
         let device = device();
-        let model: Klm = load_model(&paths, &cfg, &device)?;
-        let ds = training_data(&cfg);
-        let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
-        let parts = BlobParts::new(&model.enc, &model.dec, &f);
+        let ds = training_data(&cfg)?;
+        let (parts, residual_var) = if cfg.model == ModelKind::Bilinear {
+            let model: Bilinear = load_model(&paths, &cfg, &device)?;
+            let (blocks, residual_var) = global_bilinear(&model, &ds, &state.norm, &cfg)?;
+            (
+                BlobParts::bilinear(&model.enc, &model.dec, &blocks),
+                residual_var,
+            )
+        } else {
+            let model: Klm = load_model(&paths, &cfg, &device)?;
+            let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
+            (BlobParts::new(&model.enc, &model.dec, &f), residual_var)
+        };
         Ok(Prepared {
             cfg,
             state,
@@ -248,6 +261,8 @@ impl Prepared {
             } else {
                 (0.5 * (hi - lo)).max(f64::MIN_POSITIVE)
             };
+            // In the coordinate (the bilinear family's is scaled to the range).
+            let std = std / f64::from(params[1].slope(0.0));
             prior_var[LATENT_DIM + 1] = (std * std) as f32;
         }
         let mut filter = FilterSpec {
@@ -257,9 +272,17 @@ impl Prepared {
             prior_var,
             burn_in: BURN_IN,
             sigma_threshold: 1.0,
-            schedule_steps: opts.schedule_steps,
+            schedule_steps: 0,
         };
-        let schedule_check = self.parts.set_schedule(&filter)?;
+        // The linear family's gains are precomputed; the extended filter's
+        // depend on the state.
+        let schedule_check = match self.parts.family() {
+            Family::Linear => {
+                filter.schedule_steps = opts.schedule_steps;
+                Some(self.parts.set_schedule(&filter)?)
+            }
+            Family::Bilinear => None,
+        };
         // The trust checks beyond sigma pass everything until calibrated.
         let calib_cfg = CalibrateConfig::default();
         let full_map = vec![0xffu8; map_bytes(&calib_cfg)];
@@ -314,7 +337,7 @@ impl Prepared {
         d: Draft,
         out: &Path,
     ) -> Result<ExportInfo> {
-        let (bytes, trust) = calibrate_with_progress(draft, &CalibrateConfig::default())?;
+        let (bytes, trust) = calibrate_with_progress(draft, &calibration_for(&self.cfg))?;
         Model::from_bytes(&bytes)
             .map_err(|e| anyhow::anyhow!("exported blob does not read back: {e}"))?;
         write_atomic(out, &bytes)?;
@@ -331,7 +354,7 @@ impl Prepared {
                 .unwrap_or(f32::NAN),
             sigma_threshold: d.filter.sigma_threshold,
             blob_bytes: bytes.len(),
-            schedule_steps: opts.schedule_steps,
+            schedule_steps: d.filter.schedule_steps,
             schedule_check: d.schedule_check,
             trust,
         };
@@ -340,6 +363,25 @@ impl Prepared {
             serde_json::to_string_pretty(&info)?.as_bytes(),
         )?;
         Ok(info)
+    }
+}
+
+/// How the trust verdict of a run's blob is calibrated: the default; for
+/// a run trained on lab-like recordings, on held-out rollouts drawn as its
+/// training set was, an estimate counting as right within 5% (the bar a
+/// blob for real rigs is held to).
+pub fn calibration_for(cfg: &TrainConfig) -> CalibrateConfig {
+    match &cfg.lab {
+        Some(draw) => CalibrateConfig {
+            accurate: 0.05,
+            lab: Some(LabHeldOut {
+                theta0: cfg.theta0,
+                effect: cfg.effect.clone(),
+                draw: draw.clone(),
+            }),
+            ..CalibrateConfig::default()
+        },
+        None => CalibrateConfig::default(),
     }
 }
 

@@ -3,6 +3,7 @@
 use estimator::blob::{Activation, ParamSpec, Reading};
 use serde::{Deserialize, Serialize};
 use trainer_core::data::RolloutMeta;
+use trainer_core::data::drawn::LabDraw;
 use trainer_core::physics::{EffectRange, Rig};
 use trainer_core::protocol::{DT, G, ROLLOUT_LEN, THETA0, TRAIN_LENGTHS};
 
@@ -19,6 +20,18 @@ pub enum ModelKind {
     Cbm,
     /// An MLP that regresses the length from a window of states.
     Mlp,
+    /// Encoder/decoder with latent dynamics that depend on the parameters,
+    /// `y' = F(q) y` (`learn::bilinear`), fitted on batches that mix the
+    /// parameters; the filter is an extended Kalman filter.
+    Bilinear,
+}
+
+impl ModelKind {
+    /// Whether the model is a Koopman model exported as a blob with a
+    /// filter (the KLM and the bilinear family).
+    pub const fn is_koopman_blob(self) -> bool {
+        matches!(self, ModelKind::Klm | ModelKind::Bilinear)
+    }
 }
 
 /// Everything a training run depends on.
@@ -32,7 +45,8 @@ pub struct TrainConfig {
     /// The rig whose length the training lengths are (the protocol's: a
     /// rod); the blob records it.
     pub rig: Rig,
-    /// Training lengths, m.
+    /// Training lengths, m: the grid of the protocol's sets, or (with
+    /// `lab`) the range drawn from.
     pub lengths: Vec<f64>,
     /// Gravity of the simulated training data, m/s^2.
     pub g: f64,
@@ -48,6 +62,12 @@ pub struct TrainConfig {
     pub prior_std_effect: f64,
     /// Rollouts per training length.
     pub rollouts_per_length: usize,
+    /// Draw the training rollouts lab-like instead (`data::drawn`): each
+    /// its own length (log-uniform between the smallest and the largest
+    /// of `lengths`), release angle (log-uniform over `theta0`) and effect
+    /// coefficient, recorded with tracking noise and quantisation and
+    /// imported as a user's recording. `g` must be the lab's, 9.81.
+    pub lab: Option<LabDraw>,
     /// Measurements per training rollout, each released from rest (the
     /// protocol's 128). Longer than [`TrainConfig::window`], the windows
     /// start at every phase of the swing, not only at a turning point: a
@@ -65,6 +85,11 @@ pub struct TrainConfig {
     pub lr: f64,
     /// Learning rate at the end.
     pub lr_final: f64,
+    /// Largest norm of each parameter's gradient (0: not clipped). A
+    /// batch whose fitted `F(q)` grows on some `q` sends its rollout, and
+    /// the gradient, up by orders of magnitude; one such step can kill
+    /// the encoder's units.
+    pub grad_clip: f64,
     /// Ridge of the batch least-squares fit, relative to `trace(G^T G / N) / n`.
     pub ridge: f64,
     /// Weight of the multi-step latent prediction loss.
@@ -105,12 +130,14 @@ impl Default for TrainConfig {
             effect: None,
             prior_std_effect: 0.0,
             rollouts_per_length: 200,
+            lab: None,
             rollout_steps: ROLLOUT_LEN,
             window: 128,
             batch: 32,
             iterations: 2000,
             lr: 1e-3,
             lr_final: 5e-5,
+            grad_clip: 0.0,
             ridge: 1e-6,
             w_lin: 0.1,
             activation: Activation::Relu,
@@ -151,6 +178,15 @@ impl TrainConfig {
                 iterations: 4000,
                 ..base
             },
+            // The length's coordinate is w^2 scaled to [-1, 1]; its prior
+            // covers the range.
+            ModelKind::Bilinear => TrainConfig {
+                length_reading: Reading::ReciprocalUnit,
+                grad_clip: 1.0,
+                prior_std_length: 1.0,
+                iterations: 3000,
+                ..base
+            },
         }
     }
 
@@ -173,14 +209,20 @@ impl TrainConfig {
     }
 
     /// The effect as the filter's second parameter (its training range,
-    /// read [`Reading::Centred`]), or the undeclared padding parameter.
+    /// read [`Reading::Centred`], or [`Reading::Unit`] for the bilinear
+    /// family, whose `F(q)` wants coordinates of one size), or the
+    /// undeclared padding parameter.
     pub fn effect_spec(&self) -> ParamSpec<'static> {
         match &self.effect {
             Some(e) => ParamSpec {
                 name: e.name.name(),
                 declared: true,
                 train_range: [e.range[0] as f32, e.range[1] as f32],
-                reading: Reading::Centred,
+                reading: if self.model == ModelKind::Bilinear {
+                    Reading::Unit
+                } else {
+                    Reading::Centred
+                },
                 scales_with_g: false,
             },
             None => ParamSpec {

@@ -98,8 +98,35 @@ pub fn device() -> Device {
 }
 
 /// The training data a config describes (deterministic from its seed).
-pub fn training_data(cfg: &TrainConfig) -> Dataset {
-    data::training_set_with(
+pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
+    if let Some(draw) = &cfg.lab {
+        let lo = cfg.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = cfg
+            .lengths
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        anyhow::ensure!(
+            (cfg.g - data::lab::LAB_G).abs() < 1e-9,
+            "lab-like training data are recorded at g = {}; the config says {}",
+            data::lab::LAB_G,
+            cfg.g
+        );
+        return data::drawn::drawn_set(
+            cfg.seed,
+            "train",
+            &data::drawn::DrawnSet {
+                rig: cfg.rig,
+                lengths: [lo, hi],
+                theta0: cfg.theta0,
+                effect: cfg.effect.as_ref(),
+                dt: cfg.dt,
+                steps: cfg.rollout_steps,
+                draw,
+            },
+        );
+    }
+    Ok(data::training_set_with(
         cfg.seed,
         &cfg.lengths,
         cfg.rollouts_per_length,
@@ -112,7 +139,7 @@ pub fn training_data(cfg: &TrainConfig) -> Dataset {
         },
         cfg.theta0,
         cfg.effect.as_ref(),
-    )
+    ))
 }
 
 /// Loads the model of a run.

@@ -14,6 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use trainer_core::data::Dataset;
 use trainer_core::io::write_atomic;
 
+use super::bilinear::Bilinear;
 use super::config::{ModelKind, TrainConfig};
 use super::model::{Klm, Regressor, Trainable};
 use super::run::{Norm, RunPaths, RunState, device, load_model, training_data};
@@ -43,10 +44,12 @@ impl Batcher {
                 .context("training rollout without truth in its sidecar")?;
             xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
             ps.push(cfg.coordinates(m)?);
-            match lengths.iter().position(|&l| l == m.length) {
+            // Drawn lengths are all different: one stratum of them all.
+            let stratum_length = if cfg.lab.is_some() { 0.0 } else { m.length };
+            match lengths.iter().position(|&l| l == stratum_length) {
                 Some(k) => strata[k].push(i),
                 None => {
-                    lengths.push(m.length);
+                    lengths.push(stratum_length);
                     strata.push(vec![i]);
                 }
             }
@@ -110,6 +113,19 @@ fn save_checkpoint<M: Trainable>(
     Ok(())
 }
 
+/// The optimiser of `cfg`: Adam, its gradients clipped when the config
+/// says so.
+fn adam(cfg: &TrainConfig) -> AdamConfig {
+    let adam = AdamConfig::new();
+    if cfg.grad_clip > 0.0 {
+        adam.with_grad_clipping(Some(
+            burn::optim::grad_clipping::GradientClippingConfig::Norm(cfg.grad_clip as f32),
+        ))
+    } else {
+        adam
+    }
+}
+
 /// Held while a fresh training seeds the backend and draws its initial
 /// weights.
 static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -144,6 +160,7 @@ pub fn train_with(
     match kind {
         ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, bar),
         ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, bar),
+        ModelKind::Bilinear => train_model::<Bilinear>(dir, cfg, resume, bar),
     }
 }
 
@@ -171,14 +188,14 @@ fn train_model<M: Trainable>(
     } else {
         None
     };
-    let ds = training_data(saved.as_ref().unwrap_or(&cfg));
+    let ds = training_data(saved.as_ref().unwrap_or(&cfg))?;
     let (cfg, mut model, mut optim, mut state) = if resume {
         let cfg = saved.clone().context("no saved config")?;
         let state: RunState = serde_json::from_str(
             &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
         )?;
         let model: M = load_model(&paths, &cfg, &device)?;
-        let optim = AdamConfig::new()
+        let optim = adam(&cfg)
             .init()
             .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
@@ -219,7 +236,8 @@ fn train_model<M: Trainable>(
             &paths.log,
             format!("iteration,total,{a},{b},{c},seconds\n").as_bytes(),
         )?;
-        (cfg, model, AdamConfig::new().init(), state)
+        let optim = adam(&cfg).init();
+        (cfg, model, optim, state)
     };
     if cfg.threads > 0 {
         let _ = rayon::ThreadPoolBuilder::new()
@@ -286,7 +304,7 @@ mod tests {
             batch: 8,
             ..TrainConfig::for_model(kind)
         };
-        let ds = training_data(&cfg);
+        let ds = training_data(&cfg).unwrap();
         let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg).unwrap();
         let (_, p) = b.batch(&cfg, iteration, &Device::flex());
         let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();

@@ -67,6 +67,7 @@ fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
             set: set.into(),
             seed: Some(seed),
             dt,
+            rig: Some(physics.rig),
             rollouts: metas,
         },
     }
@@ -115,13 +116,18 @@ pub fn training_set_with(
 
 /// The test set: 10 rollouts per test length, `theta_0 = pi/2 + k 0.4 pi / 9`.
 pub fn test_set(seed: u64, lengths: &[f64], effects: &[Effect]) -> Dataset {
+    test_set_with(seed, lengths, effects, Physics::PROTOCOL)
+}
+
+/// The test set's rollouts with other constants (another rig).
+pub fn test_set_with(seed: u64, lengths: &[f64], effects: &[Effect], physics: Physics) -> Dataset {
     let mut specs = Vec::new();
     for &l in lengths {
         for k in 0..TEST_PER_LENGTH {
             specs.push((l, PI / 2.0 + k as f64 * 0.4 * PI / 9.0, effects.to_vec()));
         }
     }
-    make("test", seed, specs, Physics::PROTOCOL)
+    make("test", seed, specs, physics)
 }
 
 #[cfg(test)]

@@ -15,13 +15,14 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+pub mod drawn;
 pub mod generate;
 pub mod import;
 pub mod lab;
 pub mod project_csv;
 pub mod table;
 
-pub use generate::{Physics, test_set, training_set, training_set_with};
+pub use generate::{Physics, test_set, test_set_with, training_set, training_set_with};
 pub use project_csv::{CSV_HEADER, read, sidecar_path, to_csv, write};
 pub use table::CsvError;
 
@@ -30,7 +31,7 @@ pub use table::CsvError;
 pub struct RolloutMeta {
     /// Id as in the CSV's `rollout` column.
     pub rollout: u32,
-    /// Rod length, m.
+    /// Length, m, of the set's rig ([`Sidecar::rig`]).
     pub length: f64,
     /// Initial angle, rad.
     pub theta0: f64,
@@ -48,6 +49,9 @@ pub struct Sidecar {
     pub seed: Option<u64>,
     /// Observation interval, s.
     pub dt: f64,
+    /// The rig whose lengths the truth gives (`None`: measured, unknown).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<crate::physics::Rig>,
     /// Truth per rollout.
     pub rollouts: Vec<RolloutMeta>,
 }

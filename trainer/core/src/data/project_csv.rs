@@ -127,6 +127,7 @@ pub fn read(path: &Path, min_rows: usize) -> anyhow::Result<Dataset> {
             set: "measured".into(),
             seed: None,
             dt,
+            rig: None,
             rollouts: Vec::new(),
         }
     };

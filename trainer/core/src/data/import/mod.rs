@@ -175,6 +175,7 @@ pub fn import(paths: &[std::path::PathBuf], opts: &ImportOptions) -> Result<Data
             set: "measured".into(),
             seed: None,
             dt: opts.dt,
+            rig: None,
             rollouts: Vec::new(),
         },
     })

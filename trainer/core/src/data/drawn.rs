@@ -1,0 +1,198 @@
+//! Lab-like rollouts with drawn parameters: what a blob for real rigs is
+//! trained and calibrated on. Each is recorded as a user records a swing
+//! ([`LabSpec::record`]: the angle only, at a frame or sample rate, with
+//! tracking noise and quantisation) and imported as a user imports it
+//! ([`import::to_rollout`]: the rate from the smoothing differentiator,
+//! resampled to the model's interval), so the filter is trained on what
+//! it will see.
+//!
+//! Per rollout, from one ChaCha8 stream: the length log-uniform over its
+//! range, the release angle log-uniform (small swings are as common as
+//! large ones), the effect's coefficient uniform over its range, the rate
+//! one of [`LabDraw::rates`], the noise uniform over [`LabDraw::noise`].
+
+use anyhow::{Context, Result};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::import::{self, ImportOptions};
+use super::lab::{Case, LabSpec, Stamps};
+use super::{Dataset, RolloutMeta, Sidecar};
+use crate::physics::{EffectRange, Rig};
+
+/// How the recordings are taken (the rest of a set's settings are the
+/// training config's: rig, ranges, interval, length).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LabDraw {
+    /// Rollouts in the set.
+    pub rollouts: usize,
+    /// Sample rates, Hz: one drawn per recording.
+    pub rates: Vec<f64>,
+    /// Tracking noise, rad (standard deviation), uniform over `[lo, hi]`.
+    pub noise: [f64; 2],
+    /// Quantisation step of the angle, rad (0.1 degree: a tracker's).
+    pub quantum: f64,
+}
+
+impl Default for LabDraw {
+    /// Video at 25 to 60 frames a second and a 100 Hz logger, tracking
+    /// noise of 0.002 to 0.01 rad, 0.1-degree steps: the lab generator's.
+    fn default() -> Self {
+        LabDraw {
+            rollouts: 2000,
+            rates: vec![25.0, 30.0, 50.0, 60.0, 100.0],
+            noise: [0.002, 0.01],
+            quantum: 0.1f64.to_radians(),
+        }
+    }
+}
+
+/// One set: the rig and ranges, and how it is recorded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrawnSet<'a> {
+    /// The rig (the lengths are its).
+    pub rig: Rig,
+    /// Lengths, m, log-uniform over `[lo, hi]`.
+    pub lengths: [f64; 2],
+    /// Release angles, rad, log-uniform over `[lo, hi]`.
+    pub theta0: [f64; 2],
+    /// The effect, its coefficient uniform over its range.
+    pub effect: Option<&'a EffectRange>,
+    /// The model's interval, s.
+    pub dt: f64,
+    /// Measurements per rollout.
+    pub steps: usize,
+    /// How they are recorded.
+    pub draw: &'a LabDraw,
+}
+
+/// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty).
+fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+    if hi > lo {
+        (rng.random_range(lo.ln()..hi.ln())).exp()
+    } else {
+        lo
+    }
+}
+
+/// The set of `seed`; the truth in its sidecar (`set_name` names it).
+/// Gravity is the lab's, [`super::lab::LAB_G`].
+pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset> {
+    anyhow::ensure!(
+        s.lengths[0] > 0.0 && s.theta0[0] > 0.0 && s.dt > 0.0 && s.steps >= 2,
+        "a drawn set needs positive lengths, release angles and interval, and 2 steps"
+    );
+    anyhow::ensure!(!s.draw.rates.is_empty(), "a drawn set needs a sample rate");
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut rollouts = Vec::with_capacity(s.draw.rollouts);
+    let mut metas = Vec::with_capacity(s.draw.rollouts);
+    let opts = ImportOptions {
+        dt: s.dt,
+        ..ImportOptions::default()
+    };
+    for id in 0..s.draw.rollouts as u32 {
+        let length = log_uniform(&mut rng, s.lengths);
+        let theta0 = log_uniform(&mut rng, s.theta0);
+        let effect = s
+            .effect
+            .map(|e| e.at(rng.random_range(e.range[0]..=e.range[1])));
+        let rate = s.draw.rates[rng.random_range(0..s.draw.rates.len())];
+        let noise = rng.random_range(s.draw.noise[0]..=s.draw.noise[1]);
+        let spec = LabSpec {
+            case: Case::Viscous,
+            length,
+            rig: s.rig,
+            theta0,
+            // One interval more than the rollout, and a second for the
+            // differentiator's window at the end.
+            duration: s.steps as f64 * s.dt + 1.0,
+            rate,
+            stamps: Stamps::Even,
+            noise,
+            quantum: s.draw.quantum,
+            effects: effect.iter().cloned().collect(),
+            offset: 0.0,
+            forcing: None,
+        };
+        let rec = spec.record(&mut rng);
+        let mut r = import::to_rollout(&rec, id, &opts)
+            .with_context(|| format!("drawn rollout {id} ({length:.3} m, {theta0:.3} rad)"))?;
+        anyhow::ensure!(
+            r.xs.len() >= s.steps && super::unbroken(&r.t, s.dt) >= s.steps,
+            "drawn rollout {id}: {} steps imported of {}",
+            r.xs.len(),
+            s.steps
+        );
+        r.t.truncate(s.steps);
+        r.xs.truncate(s.steps);
+        rollouts.push(r);
+        metas.push(RolloutMeta {
+            rollout: id,
+            length,
+            theta0,
+            effects: effect
+                .iter()
+                .map(|e| (e.name().to_string(), e.coefficient))
+                .collect(),
+        });
+    }
+    Ok(Dataset {
+        rollouts,
+        sidecar: Sidecar {
+            set: set_name.into(),
+            seed: Some(seed),
+            dt: s.dt,
+            rig: Some(s.rig),
+            rollouts: metas,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::EffectKind;
+
+    #[test]
+    fn a_drawn_set_is_seeded_and_lies_in_its_ranges() {
+        let viscous = EffectRange {
+            name: EffectKind::Viscous,
+            range: [0.0, 0.1],
+        };
+        let draw = LabDraw {
+            rollouts: 12,
+            ..LabDraw::default()
+        };
+        let set = DrawnSet {
+            rig: Rig::Simple,
+            lengths: [0.1, 1.5],
+            theta0: [0.03, 1.5],
+            effect: Some(&viscous),
+            dt: 0.04,
+            steps: 100,
+            draw: &draw,
+        };
+        let a = drawn_set(5, "train", &set).unwrap();
+        let b = drawn_set(5, "train", &set).unwrap();
+        let c = drawn_set(6, "train", &set).unwrap();
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        for (r, m) in a.rollouts.iter().zip(&a.sidecar.rollouts) {
+            assert_eq!(r.xs.len(), 100);
+            assert!((0.1..=1.5).contains(&m.length) && (0.03..=1.5).contains(&m.theta0));
+            let c = m.effects["viscous"];
+            assert!((0.0..=0.1).contains(&c));
+            // Released from rest at theta0: the first imported angle is
+            // within the noise and smoothing of it (0.01 rad noise, a
+            // 0.1-degree step; the smoothing window's quadratic follows the
+            // turning point): 0.03 rad.
+            assert!(
+                (r.xs[0][0] - m.theta0).abs() < 0.03,
+                "{} vs {}",
+                r.xs[0][0],
+                m.theta0
+            );
+        }
+    }
+}

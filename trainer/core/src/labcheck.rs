@@ -1,0 +1,322 @@
+//! A blob for real rigs held to lab-like recordings it has not seen: what
+//! a user with a bob on a string brings, estimated as the user estimates
+//! it (recorded, imported at the blob's interval, the filter over every
+//! sample at the declared `g`).
+//!
+//! Each recording ([`LabSpec`], recorded by [`LabSpec::record`]): a
+//! string (or the blob's rig) of log-uniform length over
+//! [`LabCheckConfig::lengths`] at `g = 9.81`, released from rest at a
+//! log-uniform angle over [`LabCheckConfig::swings`], one dissipation at
+//! the sizes real pendulums show (viscous 0.01 to 0.1 1/s, drag 0.01 to
+//! 0.1 1/rad, Coulomb 0.02 to 0.2 rad/s^2, in turn), filmed at 12 to 100
+//! Hz (evenly or with a logger's jitter, at least 12 samples a period),
+//! tracking noise 0.002 to 0.01 rad and 0.1-degree steps, for
+//! [`LabCheckConfig::seconds`].
+//!
+//! The figures ([`Figures`]): the length after the first [`WINDOW`]
+//! measurements and at the end of the recording, against the truth.
+
+use anyhow::{Context, Result};
+use estimator::{Estimator, Model, StepOutput};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::data::import::{self, ImportOptions};
+use crate::data::lab::{Case, LAB_G, LabSpec, Stamps};
+use crate::physics::{Effect, EffectKind};
+use crate::protocol::WINDOW;
+use crate::track::track_each;
+
+/// How the recordings are drawn.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct LabCheckConfig {
+    /// Seed of the recordings (training uses 42, calibration 7 to 9).
+    pub seed: u64,
+    /// Recordings.
+    pub recordings: usize,
+    /// Lengths, m, log-uniform.
+    pub lengths: [f64; 2],
+    /// Release angles, rad, log-uniform.
+    pub swings: [f64; 2],
+    /// Duration, s, uniform.
+    pub seconds: [f64; 2],
+}
+
+impl Default for LabCheckConfig {
+    fn default() -> Self {
+        LabCheckConfig {
+            seed: 11,
+            recordings: 120,
+            lengths: [0.1, 1.5],
+            swings: [0.05, 1.4],
+            seconds: [20.0, 60.0],
+        }
+    }
+}
+
+/// The estimate at one point of a recording.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct At {
+    /// Measurements seen.
+    pub measured: usize,
+    /// The length, m, and its standard deviation.
+    pub length: f32,
+    /// Its standard deviation.
+    pub std: f32,
+    /// The second parameter (the blob's effect), when declared.
+    pub effect: f32,
+    /// `trusted`, `untrusted` or `pending`.
+    pub trust: String,
+    /// Why not trusted.
+    pub reasons: Vec<String>,
+}
+
+impl At {
+    fn of(out: &StepOutput, measured: usize) -> At {
+        At {
+            measured,
+            length: out.params[0],
+            std: out.param_std[0],
+            effect: out.params[1],
+            trust: out.trust.word().into(),
+            reasons: out
+                .trust
+                .reasons()
+                .iter()
+                .map(|r| r.as_str().into())
+                .collect(),
+        }
+    }
+
+    /// The relative error against `truth`.
+    pub fn error(&self, truth: f64) -> f64 {
+        (f64::from(self.length) - truth).abs() / truth
+    }
+}
+
+/// One recording and what the estimator made of it.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Outcome {
+    /// Its dissipation.
+    pub effect: String,
+    /// Its coefficient.
+    pub coefficient: f64,
+    /// True length, m.
+    pub length: f64,
+    /// Release angle, rad.
+    pub theta0: f64,
+    /// Samples per second.
+    pub rate: f64,
+    /// Tracking noise, rad.
+    pub noise: f64,
+    /// Seconds recorded.
+    pub seconds: f64,
+    /// After the first [`WINDOW`] measurements.
+    pub first: At,
+    /// At the end.
+    pub end: At,
+}
+
+/// The dissipations in turn, with their real sizes.
+const EFFECTS: [(EffectKind, [f64; 2]); 3] = [
+    (EffectKind::Viscous, [0.01, 0.1]),
+    (EffectKind::Drag, [0.01, 0.1]),
+    (EffectKind::Coulomb, [0.02, 0.2]),
+];
+
+/// Log-uniform over `[lo, hi]`.
+fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+    rng.random_range(lo.ln()..hi.ln()).exp()
+}
+
+/// Runs the estimator of `model` over the recordings of `cfg`, at the
+/// lab's `g` (declared), each imported at the blob's interval.
+pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let dt = f64::from(model.blob().body.dt);
+    let rig = model.blob().body.rig;
+    let opts = ImportOptions {
+        dt,
+        ..ImportOptions::default()
+    };
+    let fresh = Estimator::new(model)
+        .with_gravity(LAB_G as f32)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut out = Vec::with_capacity(cfg.recordings);
+    for k in 0..cfg.recordings {
+        let (kind, [lo, hi]) = EFFECTS[k % EFFECTS.len()];
+        let coefficient = rng.random_range(lo..hi);
+        let length = log_uniform(&mut rng, cfg.lengths);
+        let theta0 = log_uniform(&mut rng, cfg.swings);
+        // At least 12 samples a period.
+        let period = 2.0 * std::f64::consts::PI / rig.w2(LAB_G, length).sqrt();
+        let rates: Vec<f64> = [12.0, 25.0, 30.0, 50.0, 100.0]
+            .into_iter()
+            .filter(|r| r * period >= 12.0)
+            .collect();
+        let rate = rates[rng.random_range(0..rates.len())];
+        let stamps = if rng.random_bool(0.3) {
+            Stamps::Jittered
+        } else {
+            Stamps::Even
+        };
+        let noise = rng.random_range(0.002..0.01);
+        let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
+        let spec = LabSpec {
+            case: Case::Viscous,
+            length,
+            rig,
+            theta0,
+            duration: seconds,
+            rate,
+            stamps,
+            noise,
+            quantum: 0.1f64.to_radians(),
+            effects: vec![Effect::new(kind, coefficient)],
+            offset: 0.0,
+            forcing: None,
+        };
+        let rec = spec.record(&mut rng);
+        let r = import::to_rollout(&rec, k as u32, &opts)
+            .with_context(|| format!("lab recording {k} ({length:.3} m, {theta0:.3} rad)"))?;
+        let mut first = None;
+        let mut n = 0;
+        let tracked = track_each(&mut fresh.clone(), &r, dt, None, |_, o| {
+            n += 1;
+            if n == WINDOW {
+                first = Some(At::of(o, n));
+            }
+        })?;
+        let end = At::of(&tracked.out, tracked.measured);
+        out.push(Outcome {
+            effect: kind.name().into(),
+            coefficient,
+            length,
+            theta0,
+            rate,
+            noise,
+            seconds,
+            first: first.unwrap_or_else(|| end.clone()),
+            end,
+        });
+    }
+    Ok(out)
+}
+
+/// Counts over a group of recordings.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Counts {
+    /// Recordings.
+    pub n: usize,
+    /// Within 2% at the end.
+    pub end_within_2: usize,
+    /// Within 5% after the first window.
+    pub first_within_5: usize,
+    /// More than 5% off and trusted, after the window or at the end.
+    pub wrong_trusted: usize,
+    /// Trusted at the end, of those within 5% there.
+    pub trusted_of_right: [usize; 2],
+    /// Median relative error at the end.
+    pub median_end_error: f64,
+}
+
+impl Counts {
+    fn of<'a>(group: impl Iterator<Item = &'a Outcome>) -> Counts {
+        let mut c = Counts::default();
+        let mut errors = Vec::new();
+        for o in group {
+            c.n += 1;
+            let (e1, e2) = (o.first.error(o.length), o.end.error(o.length));
+            errors.push(e2);
+            c.end_within_2 += usize::from(e2 <= 0.02);
+            c.first_within_5 += usize::from(e1 <= 0.05);
+            let wrong = |e: f64, a: &At| e > 0.05 && a.trust == "trusted";
+            c.wrong_trusted += usize::from(wrong(e1, &o.first) || wrong(e2, &o.end));
+            if e2 <= 0.05 {
+                c.trusted_of_right[1] += 1;
+                c.trusted_of_right[0] += usize::from(o.end.trust == "trusted");
+            }
+        }
+        c.median_end_error = crate::metrics::median(&mut errors);
+        c
+    }
+}
+
+/// The figures: all, per effect, per swing size.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Figures {
+    /// Every recording.
+    pub all: Counts,
+    /// Per dissipation.
+    pub by_effect: Vec<(String, Counts)>,
+    /// Per release angle, rad: `[lo, hi)`.
+    pub by_swing: Vec<([f64; 2], Counts)>,
+}
+
+/// Release-angle bins of the table, rad.
+pub const SWING_BINS: [[f64; 2]; 4] = [[0.0, 0.15], [0.15, 0.5], [0.5, 1.0], [1.0, 10.0]];
+
+/// The figures of `outcomes`.
+pub fn figures(outcomes: &[Outcome]) -> Figures {
+    Figures {
+        all: Counts::of(outcomes.iter()),
+        by_effect: EFFECTS
+            .iter()
+            .map(|(k, _)| {
+                let name = k.name();
+                (
+                    name.to_string(),
+                    Counts::of(outcomes.iter().filter(|o| o.effect == name)),
+                )
+            })
+            .collect(),
+        by_swing: SWING_BINS
+            .iter()
+            .map(|&[lo, hi]| {
+                (
+                    [lo, hi],
+                    Counts::of(outcomes.iter().filter(|o| o.theta0 >= lo && o.theta0 < hi)),
+                )
+            })
+            .collect(),
+    }
+}
+
+/// The figures as a markdown table.
+pub fn markdown(f: &Figures) -> String {
+    let mut s = String::from(
+        "| recordings | n | within 2% at the end | within 5% after 64 | more than 5% off and trusted | trusted, of those within 5% at the end | median error at the end |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    let row = |name: &str, c: &Counts| {
+        let pct = |k: usize, n: usize| {
+            if n == 0 {
+                "-".to_string()
+            } else {
+                format!("{k} ({:.0}%)", 100.0 * k as f64 / n as f64)
+            }
+        };
+        format!(
+            "| {name} | {} | {} | {} | {} | {} | {:.2}% |\n",
+            c.n,
+            pct(c.end_within_2, c.n),
+            pct(c.first_within_5, c.n),
+            pct(c.wrong_trusted, c.n),
+            pct(c.trusted_of_right[0], c.trusted_of_right[1]),
+            100.0 * c.median_end_error
+        )
+    };
+    s.push_str(&row("all", &f.all));
+    for (name, c) in &f.by_effect {
+        s.push_str(&row(name, c));
+    }
+    for ([lo, hi], c) in &f.by_swing {
+        let name = if *hi > 5.0 {
+            format!("released at {lo} rad or more")
+        } else {
+            format!("released at {lo} to {hi} rad")
+        };
+        s.push_str(&row(&name, c));
+    }
+    s
+}

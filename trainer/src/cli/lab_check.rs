@@ -1,0 +1,60 @@
+//! `koopman lab-check`: a blob for real rigs on lab-like recordings it has
+//! not seen (`trainer_core::labcheck`).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use trainer_core::io::write_atomic;
+use trainer_core::labcheck::{self, LabCheckConfig};
+
+/// Estimates the length of lab-like recordings (strings of 0.1 to 1.5 m
+/// at g = 9.81, 12 to 100 Hz, noise and quantisation, viscous, drag or
+/// Coulomb friction) with a blob, as a user would, and tables how often
+/// it is right and trusted.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Weights blob (one trained on lab-like recordings).
+    #[arg(long, default_value = "weights/rig.kkf")]
+    weights: PathBuf,
+    /// Recordings.
+    #[arg(long, default_value_t = LabCheckConfig::default().recordings)]
+    recordings: usize,
+    /// Seed of the recordings.
+    #[arg(long, default_value_t = LabCheckConfig::default().seed)]
+    seed: u64,
+    /// Write labcheck.json (every recording and the figures) and
+    /// labcheck.md here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Runs it.
+pub fn run(a: Args) -> Result<()> {
+    let bytes = super::read_blob(&a.weights)?;
+    let model = super::model(&a.weights, &bytes)?;
+    let cfg = LabCheckConfig {
+        seed: a.seed,
+        recordings: a.recordings,
+        ..LabCheckConfig::default()
+    };
+    anyhow::ensure!(cfg.recordings > 0, "--recordings must be at least 1");
+    let outcomes = labcheck::run(&model, &cfg)?;
+    let figures = labcheck::figures(&outcomes);
+    let md = format!(
+        "{} recordings (seed {}), estimated with {} at g = 9.81 declared.\n\n{}",
+        cfg.recordings,
+        cfg.seed,
+        a.weights.display(),
+        labcheck::markdown(&figures)
+    );
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir)?;
+        let json = serde_json::json!({ "config": cfg, "figures": figures, "recordings": outcomes });
+        write_atomic(
+            &dir.join("labcheck.json"),
+            serde_json::to_string_pretty(&json)?.as_bytes(),
+        )?;
+        write_atomic(&dir.join("labcheck.md"), md.as_bytes())?;
+    }
+    super::say(md.trim_end())
+}
