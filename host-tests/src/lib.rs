@@ -1,9 +1,12 @@
 //! Host-side tests of the `estimator` crate against the host's own
 //! simulator and reference filter (`trainer-core`, no burn);
 //! the tests are in `tests/`. This library locates the shipped files and
-//! the benchmarks' inputs.
+//! the benchmarks' inputs, and builds the synthetic bilinear blob
+//! ([`synthetic`]).
 
 use std::path::PathBuf;
+
+pub mod synthetic;
 
 /// The workspace root.
 pub fn root() -> PathBuf {

@@ -163,11 +163,12 @@ fn off_distribution_suite() {
             let trusted = out.trust.is_trusted();
             row.rollouts += 1;
             row.flagged += usize::from(out.trust.is_untrusted());
-            if !((est - truth).abs() <= 0.2 * truth) {
+            // A NaN estimate is not within 20%: it counts as wrong.
+            if (est - truth).abs() <= 0.2 * truth {
+                row.false_flags += usize::from(out.trust.is_untrusted());
+            } else {
                 row.wrong += 1;
                 row.wrong_trusted += usize::from(trusted);
-            } else {
-                row.false_flags += usize::from(out.trust.is_untrusted());
             }
             if !(est.is_finite() && est > 0.0) {
                 row.non_physical_trusted += usize::from(trusted);

@@ -3,14 +3,78 @@
 //! the criterion bench): dynamic matrices (nalgebra `DMatrix`), `S^-1` by
 //! LU instead of `L D L^T`, the textbook `K = P H^T S^-1` and
 //! `P = (I - K H) P` update, no use of structure.
+//!
+//! For a bilinear blob ([`Family::Bilinear`]) it is the textbook extended
+//! filter: the prediction `g = [F(q) y; q]` and `P = J P J^T + Q` with `J`
+//! the whole [`AUG_DIM`] square Jacobian of that step at the mean
+//! ([`Dynamics::linearise`]), then the same update. For a linear blob
+//! `J = F` and the filter is the plain one.
 
+use std::borrow::Cow;
+
+use estimator::blob::{BILINEAR_BLOCKS, F32s, Family};
 use estimator::{AUG_DIM, LATENT_DIM, Model};
 use nalgebra::{DMatrix, DVector};
 
+/// How `[y; p]` advances one step: the blob's model in f64.
+pub enum Dynamics {
+    /// `g' = F g` ([`AUG_DIM`] square, its parameter rows the identity).
+    Linear(DMatrix<f64>),
+    /// `y' = F(q) y`, `q' = q` with `F(q) = F_0 + q_1 F_1 + q_2 F_2 +
+    /// q_1^2 F_11`: the four [`LATENT_DIM`] square matrices in that order.
+    Bilinear([DMatrix<f64>; BILINEAR_BLOCKS]),
+}
+
+impl Dynamics {
+    /// The model of `m`'s blob: `F`, or `F_0, F_1, F_2, F_11` read from
+    /// the arena ([`estimator::blob::Body::bilinear`]).
+    pub fn of(m: &Model<'_>) -> Self {
+        match m.family() {
+            Family::Linear => {
+                Dynamics::Linear(DMatrix::from_fn(AUG_DIM, AUG_DIM, |i, j| m.f(i, j) as f64))
+            }
+            Family::Bilinear => {
+                let body = &m.blob().body;
+                let square = |v: F32s<'_>| {
+                    DMatrix::from_row_iterator(
+                        LATENT_DIM,
+                        LATENT_DIM,
+                        v.iter().map(f64::from).chain(std::iter::repeat(f64::NAN)),
+                    )
+                };
+                Dynamics::Bilinear(std::array::from_fn(|k| square(body.bilinear(k))))
+            }
+        }
+    }
+
+    /// The next state `g'` from `g` and the Jacobian `J = dg'/dg` at `g`:
+    /// `F` itself for the linear family (borrowed); for the bilinear
+    /// `J = [[F(q), (F_1 + 2 q_1 F_11) y, F_2 y], [0, I]]`.
+    pub fn linearise(&self, g: &DVector<f64>) -> (DVector<f64>, Cow<'_, DMatrix<f64>>) {
+        match self {
+            Dynamics::Linear(f) => (f * g, Cow::Borrowed(f)),
+            Dynamics::Bilinear([f0, f1, f2, f11]) => {
+                let y = g.rows(0, LATENT_DIM);
+                let (q1, q2) = (g[LATENT_DIM], g[LATENT_DIM + 1]);
+                let fq = f0 + f1 * q1 + f2 * q2 + f11 * (q1 * q1);
+                let mut next = g.clone();
+                next.rows_mut(0, LATENT_DIM).copy_from(&(&fq * y));
+                let mut j = DMatrix::identity(AUG_DIM, AUG_DIM);
+                j.view_mut((0, 0), (LATENT_DIM, LATENT_DIM)).copy_from(&fq);
+                j.view_mut((0, LATENT_DIM), (LATENT_DIM, 1))
+                    .copy_from(&((f1 + f11 * (2.0 * q1)) * y));
+                j.view_mut((0, LATENT_DIM + 1), (LATENT_DIM, 1))
+                    .copy_from(&(f2 * y));
+                (next, Cow::Owned(j))
+            }
+        }
+    }
+}
+
 /// The reference filter's state and matrices.
 pub struct Reference {
-    /// `F`.
-    pub f: DMatrix<f64>,
+    /// The model: `F`, or the bilinear `F(q)`.
+    pub dynamics: Dynamics,
     /// `Q`.
     pub q: DMatrix<f64>,
     /// `R`.
@@ -27,7 +91,6 @@ impl Reference {
     /// Starts from `y = z0` and the blob's prior.
     pub fn new(m: &Model<'_>, z0: &[f32]) -> Self {
         let spec = &m.blob().body.filter;
-        let f = DMatrix::from_fn(AUG_DIM, AUG_DIM, |i, j| m.f(i, j) as f64);
         let q = DMatrix::from_diagonal(&DVector::from_iterator(
             AUG_DIM,
             spec.q.iter().map(|&v| v as f64),
@@ -45,22 +108,35 @@ impl Reference {
             AUG_DIM,
             spec.prior_var.iter().map(|&v| v as f64),
         ));
-        Reference { f, q, r, h, g, p }
+        Reference {
+            dynamics: Dynamics::of(m),
+            q,
+            r,
+            h,
+            g,
+            p,
+        }
+    }
+
+    /// The prediction from the current state, leaving it alone: `g = F g`
+    /// (or the bilinear step) and `P = J P J^T + Q`.
+    fn predicted(&self) -> (DVector<f64>, DMatrix<f64>) {
+        let (g, j) = self.dynamics.linearise(&self.g);
+        let p = j.as_ref() * &self.p * j.transpose() + &self.q;
+        (g, p)
     }
 
     /// Predicts one step without a measurement: `g = F g`,
-    /// `P = F P F^T + Q`.
+    /// `P = F P F^T + Q` (`F` the Jacobian for a bilinear blob).
     pub fn predict(&mut self) {
-        self.g = &self.f * &self.g;
-        self.p = &self.f * &self.p * self.f.transpose() + &self.q;
+        (self.g, self.p) = self.predicted();
     }
 
     /// Predicts and updates with the encoded measurement `z`; false (and
     /// the state unchanged) when `S` cannot be inverted.
     pub fn step(&mut self, z: &[f32]) -> bool {
         let z = DVector::from_iterator(LATENT_DIM, z.iter().map(|&v| v as f64));
-        let g = &self.f * &self.g;
-        let p = &self.f * &self.p * self.f.transpose() + &self.q;
+        let (g, p) = self.predicted();
         let s = &self.h * &p * self.h.transpose() + &self.r;
         let Some(s_inv) = s.lu().try_inverse() else {
             return false;
@@ -133,7 +209,8 @@ pub mod ads {
     }
 
     impl Models {
-        /// From the blob's `F`, `Q`, `R`.
+        /// From the blob's `F`, `Q`, `R`: a linear blob's (a bilinear one
+        /// has no `F`; [`super::Reference`] runs its extended filter).
         pub fn new(m: &Model<'_>) -> Self {
             let spec = &m.blob().body.filter;
             let f = Square::from_fn(|i, j| m.f(i, j));
