@@ -586,11 +586,13 @@ proptest! {
     /// mixed with raw ones and gaps: nothing panics, a refusal (often
     /// `FilterNotPositiveDefinite` or `FilterNonFinite` here) leaves the
     /// state exactly as it was, and an accepted step reports finite
-    /// coordinates and standard deviations. `P` is not checked: latents
-    /// tens of `R`'s standard deviations off drive the coordinates far
-    /// out of the training square, where `F(q)` expands, and the
-    /// recursion loses positive definiteness there (the f64 reference
-    /// too). 256 cases, up to 79 operations each.
+    /// coordinates and standard deviations, and a `P` with no negative
+    /// variance. (Latents tens of `R`'s standard deviations off drive the
+    /// coordinates far out of the training square, where `F(q)` expands,
+    /// and the textbook recursion loses positive definiteness there, the
+    /// f64 reference's too; the estimator refuses such an update with
+    /// `FilterNotPositiveDefinite`. Without that refusal this test finds
+    /// a negative variance.) 256 cases, up to 79 operations each.
     #[test]
     fn any_finite_latent_never_panics_and_a_refusal_changes_nothing(
         ops in proptest::collection::vec(
@@ -609,7 +611,11 @@ proptest! {
         let m = Model::from_bytes(blob()).unwrap();
         let mut est = Estimator::new(&m).at_trained_gravity();
         for op in &ops {
-            check(op, &mut est)?;
+            if let Some(p) = check(op, &mut est)? {
+                for i in 0..AUG_DIM {
+                    prop_assert!(p[(i, i)] >= 0.0, "P[{}][{}] = {} after {:?}", i, i, p[(i, i)], op);
+                }
+            }
         }
     }
 }

@@ -34,7 +34,7 @@ enum Cmd {
     /// Trains the KLM (or a baseline) into a run directory.
     #[command(after_help = cli::EXIT_CODES)]
     Train(cli::train::Args),
-    /// Exports a run's weights: a KLM to one blob, a baseline (CBM, MLP) to
+    /// Exports a run's weights: a KLM or a bilinear model to one blob, a baseline (CBM, MLP) to
     /// its burnpack with a JSON sidecar.
     #[command(after_help = cli::EXIT_CODES)]
     Export(cli::export::Args),

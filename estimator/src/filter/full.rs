@@ -308,10 +308,20 @@ impl Estimator<'_> {
 
         // Is anything NaN or infinite?
         let finite = p.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
-        if finite {
+        if !finite {
+            return Err(Error::FilterNonFinite);
+        }
+        // A variance below zero: the extended filter linearised far from
+        // where its model holds (a measurement tens of R's deviations off
+        // pushed q out of the training range), and P is no covariance.
+        let variances_ok = p
+            .iter()
+            .enumerate()
+            .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
+        if variances_ok {
             Ok((g, p))
         } else {
-            Err(Error::FilterNonFinite)
+            Err(Error::FilterNotPositiveDefinite)
         }
     }
 }

@@ -9,7 +9,7 @@ use trainer::learn::config::ModelKind;
 use trainer::learn::run;
 use trainer_core::protocol::WINDOW;
 
-/// Exports a run's weights: a KLM to one blob, a baseline (CBM, MLP) to
+/// Exports a run's weights: a KLM or a bilinear model to one blob, a baseline (CBM, MLP) to
 /// its burnpack with a JSON sidecar.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -38,8 +38,13 @@ pub struct Args {
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     match run::kind(&a.run)? {
-        ModelKind::Klm => {
-            let out = a.out.unwrap_or_else(|| "weights/pendulum.kkf".into());
+        kind if kind.is_koopman_blob() => {
+            let default = if kind == ModelKind::Bilinear {
+                "weights/rig.kkf"
+            } else {
+                "weights/pendulum.kkf"
+            };
+            let out = a.out.unwrap_or_else(|| default.into());
             let opts = ExportOptions {
                 schedule_steps: a.schedule_steps,
                 q_latent: a.q_latent,
