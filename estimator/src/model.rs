@@ -288,6 +288,7 @@ impl<'a> Model<'a> {
     /// and the latent rows of `d y' / d g`, `[F(q), (F_1 + 2 q_1 F_11) y,
     /// F_2 y]`. `None` for a linear model (whose rows are
     /// [`Model::koopman_rows`], the same at every `g`).
+    #[inline(never)]
     pub fn bilinear_step(&self, g: &Aug) -> Option<(Latent, KoopmanRows)> {
         let [f0, f1, f2, f11] = self.bilinear?;
         let (y, q) = g.split_first_chunk::<LATENT_DIM>()?;
@@ -410,9 +411,11 @@ impl<'a> Model<'a> {
     /// identity); for the bilinear `y' = F(q) y` ([`Model::bilinear_step`]).
     pub fn advance(&self, g: &Aug) -> Aug {
         let mut out = *g;
-        if let Some((y, _)) = self.bilinear_step(g) {
-            for (o, v) in out.iter_mut().zip(&y) {
-                *o = *v;
+        if self.bilinear.is_some() {
+            if let Some((y, _)) = self.bilinear_step(g) {
+                for (o, v) in out.iter_mut().zip(&y) {
+                    *o = *v;
+                }
             }
             return out;
         }

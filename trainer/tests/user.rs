@@ -56,6 +56,7 @@ fn diagnose_json(file: &Path, args: &[&str]) -> serde_json::Value {
 fn diagnose_reads_the_declared_rigs_length_on_lab_recordings() {
     let dir = tempfile::tempdir().unwrap();
     let mut checked = [0usize; 2];
+    let mut worst = 0.0f64;
     for seed in [1u64, 2] {
         let d = dir.path().join(seed.to_string());
         for spec in lab(&d, seed) {
@@ -74,6 +75,7 @@ fn diagnose_reads_the_declared_rigs_length_on_lab_recordings() {
                 file.display()
             );
             assert_eq!(rec["length"]["rig"], rig);
+            worst = worst.max((l - truth).abs() / truth);
             checked[usize::from(rig == "rod")] += 1;
             // The other rig: the same motion, another length.
             let other = if rig == "rod" { "simple" } else { "rod" };
@@ -87,6 +89,7 @@ fn diagnose_reads_the_declared_rigs_length_on_lab_recordings() {
         checked[0] >= 3 && checked[1] >= 3,
         "strings and rods: {checked:?}"
     );
+    eprintln!("strings, rods: {checked:?}; worst relative error {worst:.2e}");
     // Without --g: the protocol's 10, said in the JSON and the text.
     let d = dir.path().join("1");
     let file = std::fs::read_dir(&d)

@@ -6,7 +6,7 @@ use super::kernels::{
     Cov, LatentSquare, all_finite, combo, dot, inverse_from_ldl, ldl, mirror_upper, tail,
     unit_lower_inverse, upper_rows,
 };
-use crate::blob::FilterSpec;
+use crate::blob::{Family, FilterSpec};
 use crate::model::{KoopmanColumns, KoopmanRows};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
@@ -59,15 +59,28 @@ impl Estimator<'_> {
     /// mean ([`crate::Model::bilinear_step`]) and `y = F(q) y`: the
     /// extended filter's prediction.
     pub(super) fn predict_only(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
+        if self.model.family() == Family::Bilinear {
+            return self.predict_only_bilinear(p);
+        }
+        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        self.predict_only_with(p, y, self.model.koopman_rows())
+    }
+
+    /// [`Estimator::predict_only`] of the bilinear family (its Jacobian in
+    /// this frame only).
+    #[inline(never)]
+    fn predict_only_bilinear(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
+        let (y, c) = self
+            .model
+            .bilinear_step(&self.g)
+            .ok_or(Error::BlobShapeMismatch)?;
+        self.predict_only_with(p, y, &c)
+    }
+
+    /// [`Estimator::predict_only`] with the predicted latent `y` and the
+    /// transition's latent rows `c`.
+    fn predict_only_with(&self, p: &Cov, y: Latent, c: &KoopmanRows) -> Result<(Aug, Cov), Error> {
         let spec = &self.model.blob().body.filter;
-        let local = self.model.bilinear_step(&self.g);
-        let (y, c) = match &local {
-            Some((y, c)) => (*y, c),
-            None => (
-                combo(self.g.iter().copied().zip(self.model.koopman_columns())),
-                self.model.koopman_rows(),
-            ),
-        };
         let mut g = self.g;
         for (gi, yi) in g.iter_mut().zip(&y) {
             *gi = *yi;
@@ -117,26 +130,35 @@ impl Estimator<'_> {
     /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
     /// mean ([`crate::Model::bilinear_step`]).
     pub(super) fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
-        match self.model.bilinear_step(&self.g) {
-            None => {
-                let (y, nu) = self.predict_latent(z);
-                let (c, ct) = (self.model.koopman_rows(), self.model.koopman_columns());
-                self.predict_update_with(z, (c, ct), y, nu)
-            }
-            Some((y, c)) => {
-                let mut nu = *z;
-                for (v, yi) in nu.iter_mut().zip(&y) {
-                    *v -= yi;
-                }
-                self.predict_update_with(z, (&c, &columns(&c)), y, nu)
-            }
+        if self.model.family() == Family::Bilinear {
+            return self.predict_update_bilinear(z);
         }
+        let (y, nu) = self.predict_latent(z);
+        let (c, ct) = (self.model.koopman_rows(), self.model.koopman_columns());
+        self.predict_update_with(z, (c, ct), y, nu)
+    }
+
+    /// [`Estimator::predict_update`] of the bilinear family: its
+    /// Jacobian's rows and their transpose live in this frame only (the
+    /// linear path's stack stays as it was).
+    #[inline(never)]
+    fn predict_update_bilinear(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
+        let (y, c) = self
+            .model
+            .bilinear_step(&self.g)
+            .ok_or(Error::BlobShapeMismatch)?;
+        let mut nu = *z;
+        for (v, yi) in nu.iter_mut().zip(&y) {
+            *v -= yi;
+        }
+        self.predict_update_with(z, (&c, &columns(&c)), y, nu)
     }
 
     /// [`Estimator::predict_update`] with the latent rows `C` of the
     /// transition (and their transpose), the predicted latent `y` and the
-    /// innovation `nu = z - y`.
-    #[inline(always)]
+    /// innovation `nu = z - y`. (Not inlined: one frame for both
+    /// families' callers, not one each.)
+    #[inline(never)]
     fn predict_update_with(
         &self,
         z: &Latent,

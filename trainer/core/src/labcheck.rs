@@ -41,6 +41,8 @@ pub struct LabCheckConfig {
     pub swings: [f64; 2],
     /// Duration, s, uniform.
     pub seconds: [f64; 2],
+    /// Tracking noise, rad (standard deviation), uniform.
+    pub noise: [f64; 2],
 }
 
 impl Default for LabCheckConfig {
@@ -51,6 +53,7 @@ impl Default for LabCheckConfig {
             lengths: [0.1, 1.5],
             swings: [0.05, 1.4],
             seconds: [20.0, 60.0],
+            noise: [0.002, 0.01],
         }
     }
 }
@@ -161,7 +164,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         } else {
             Stamps::Even
         };
-        let noise = rng.random_range(0.002..0.01);
+        let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
         let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
         let spec = LabSpec {
             case: Case::Viscous,
@@ -319,4 +322,59 @@ pub fn markdown(f: &Figures) -> String {
         s.push_str(&row(&name, c));
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(length: f32, trust: &str) -> At {
+        At {
+            measured: 64,
+            length,
+            std: 0.01,
+            effect: 0.0,
+            trust: trust.into(),
+            reasons: vec![],
+        }
+    }
+
+    fn outcome(theta0: f64, first: At, end: At) -> Outcome {
+        Outcome {
+            effect: "viscous".into(),
+            coefficient: 0.05,
+            length: 1.0,
+            theta0,
+            rate: 30.0,
+            noise: 0.005,
+            seconds: 30.0,
+            first,
+            end,
+        }
+    }
+
+    /// The counts by hand: four recordings of a 1 m string.
+    #[test]
+    fn the_counts_are_what_the_outcomes_say() {
+        let o = [
+            // Right (1%) and trusted at both points.
+            outcome(0.1, at(1.01, "trusted"), at(1.01, "trusted")),
+            // 4% after the window, 3% at the end, untrusted at the end.
+            outcome(0.3, at(1.04, "trusted"), at(0.97, "untrusted")),
+            // 10% off and trusted after the window: wrong and trusted.
+            outcome(0.6, at(1.10, "trusted"), at(1.015, "trusted")),
+            // 10% off at the end and untrusted: wrong, not trusted.
+            outcome(1.2, at(1.2, "untrusted"), at(0.9, "untrusted")),
+        ];
+        let f = figures(&o);
+        let c = &f.all;
+        assert_eq!(c.n, 4);
+        assert_eq!(c.end_within_2, 2);
+        assert_eq!(c.first_within_5, 2);
+        assert_eq!(c.wrong_trusted, 1);
+        assert_eq!(c.trusted_of_right, [2, 3]);
+        // Each swing bin holds one recording.
+        assert!(f.by_swing.iter().all(|(_, c)| c.n == 1), "{:?}", f.by_swing);
+        assert!(markdown(&f).contains("| all | 4 | 2 (50%) | 2 (50%) | 1 (25%) | 2 (67%) |"));
+    }
 }

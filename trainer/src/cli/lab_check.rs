@@ -13,8 +13,9 @@ use trainer_core::labcheck::{self, LabCheckConfig};
 /// it is right and trusted.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Weights blob (one trained on lab-like recordings).
-    #[arg(long, default_value = "weights/rig.kkf")]
+    /// Weights blob (one trained on lab-like recordings: `koopman train
+    /// --model bilinear --lab-rollouts N ...`, then `export`).
+    #[arg(long)]
     weights: PathBuf,
     /// Recordings.
     #[arg(long, default_value_t = LabCheckConfig::default().recordings)]
@@ -22,6 +23,9 @@ pub struct Args {
     /// Seed of the recordings.
     #[arg(long, default_value_t = LabCheckConfig::default().seed)]
     seed: u64,
+    /// Tracking noise, rad: LO,HI (each recording's drawn uniformly).
+    #[arg(long, value_delimiter = ',', default_values_t = LabCheckConfig::default().noise)]
+    noise: Vec<f64>,
     /// Write labcheck.json (every recording and the figures) and
     /// labcheck.md here.
     #[arg(long)]
@@ -32,9 +36,14 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
+    let [lo, hi] = a.noise[..] else {
+        anyhow::bail!("--noise takes two values, LO,HI");
+    };
+    anyhow::ensure!(0.0 <= lo && lo <= hi, "--noise: 0 <= LO <= HI");
     let cfg = LabCheckConfig {
         seed: a.seed,
         recordings: a.recordings,
+        noise: [lo, hi],
         ..LabCheckConfig::default()
     };
     anyhow::ensure!(cfg.recordings > 0, "--recordings must be at least 1");

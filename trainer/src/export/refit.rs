@@ -8,10 +8,11 @@ use burn::tensor::{Tensor, TensorData};
 use estimator::{AUG_DIM, LATENT_DIM};
 use trainer_core::data::Dataset;
 
-use crate::learn::bilinear::{Bilinear, fit_bilinear};
+use crate::learn::bilinear::{BLOCKS, Bilinear};
 use crate::learn::config::TrainConfig;
 use crate::learn::model::{Klm, fit_koopman};
 use crate::learn::run::{Norm, device};
+use nalgebra::{DMatrix, DVector};
 
 /// Every transition of `ds`, encoded: `y` `[B, T, latent]` and the
 /// parameters' coordinates `[B, 2]`.
@@ -60,6 +61,14 @@ fn residual_variance(res: Tensor<3>) -> Result<[f32; LATENT_DIM]> {
 /// order, as the blob stores them) fitted over every transition of `ds`
 /// with the trained encoder, and the one-step latent residual variance
 /// per dimension.
+///
+/// In f64 (normal equations accumulated over every transition, solved by
+/// Cholesky), not by the training's f32 elimination: the columns `y`,
+/// `q_1 y` and `q_1^2 y` are nearly collinear, and f32 leaves one-step
+/// errors near 1e-2 of the latent's scale on exact data
+/// (`learn::bilinear`'s test), which a filter reading the frequency
+/// from `F(q)` cannot afford. The ridge is the training's,
+/// `ridge * trace(G^T G / N) / n`.
 pub fn global_bilinear(
     model: &Bilinear,
     ds: &Dataset,
@@ -68,13 +77,60 @@ pub fn global_bilinear(
 ) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
     let (y, q) = encoded(&model.enc, ds, norm, cfg)?;
     let [b, t, l] = y.dims();
-    let k = fit_bilinear(y.clone(), q.clone(), cfg.ridge);
-    let pred = y.clone().slice([0..b, 0..t - 1, 0..l]).matmul(k.at(q));
-    let residual_var = residual_variance(y.slice([0..b, 1..t, 0..l]) - pred)?;
-    let mut blocks = Vec::with_capacity(4 * l * l);
-    for ft in &k.ft {
-        // F_k^T row-major is F_k column-major: transpose back.
-        blocks.extend(values(ft.clone().transpose())?);
+    let y = values(y)?;
+    let q = values(q)?;
+    let n = BLOCKS * l;
+    let latent = |r: usize, k: usize| &y[(r * t + k) * l..(r * t + k + 1) * l];
+    let columns = |r: usize, k: usize| -> Vec<f64> {
+        let (q1, q2) = (f64::from(q[2 * r]), f64::from(q[2 * r + 1]));
+        let scales = [1.0, q1, q2, q1 * q1];
+        scales
+            .iter()
+            .flat_map(|s| latent(r, k).iter().map(move |v| s * f64::from(*v)))
+            .collect()
+    };
+    let mut gtg = DMatrix::<f64>::zeros(n, n);
+    let mut gty = DMatrix::<f64>::zeros(n, l);
+    let rows = (b * (t - 1)) as f64;
+    for r in 0..b {
+        for k in 0..t - 1 {
+            let g = DVector::from_vec(columns(r, k));
+            let target = DVector::from_iterator(l, latent(r, k + 1).iter().map(|v| f64::from(*v)));
+            gtg.ger(1.0 / rows, &g, &g, 1.0);
+            gty.ger(1.0 / rows, &g, &target, 1.0);
+        }
+    }
+    let lambda = cfg.ridge * gtg.trace() / n as f64 + 1e-12;
+    for i in 0..n {
+        gtg[(i, i)] += lambda;
+    }
+    let kt = gtg
+        .cholesky()
+        .context("the bilinear refit's normal equations are not positive definite")?
+        .solve(&gty); // [4 l, l]: row block k is F_k^T
+    // The one-step residual with the refitted matrices.
+    let mut sums = [0.0f64; LATENT_DIM];
+    for r in 0..b {
+        for k in 0..t - 1 {
+            let g = DVector::from_vec(columns(r, k));
+            let pred = kt.tr_mul(&g);
+            for (d, (p, v)) in sums.iter_mut().zip(pred.iter().zip(latent(r, k + 1))) {
+                *d += (f64::from(*v) - p).powi(2) / rows;
+            }
+        }
+    }
+    let mut residual_var = [0.0f32; LATENT_DIM];
+    for (d, s) in residual_var.iter_mut().zip(&sums) {
+        *d = (*s as f32).max(1e-10);
+    }
+    // F_k row-major: F_k[i][j] = F_k^T[j][i] = kt[k l + j, i].
+    let mut blocks = Vec::with_capacity(n * l);
+    for blk in 0..BLOCKS {
+        for i in 0..l {
+            for j in 0..l {
+                blocks.push(kt[(blk * l + j, i)] as f32);
+            }
+        }
     }
     Ok((blocks, residual_var))
 }

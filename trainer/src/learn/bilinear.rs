@@ -102,6 +102,14 @@ pub fn rollout(k: &BilinearKoopman, y0: Tensor<2>, q: Tensor<2>, steps: usize) -
 impl Bilinear {
     /// Losses of one batch: `x` `[B, T, state]` normalised, `q` `[B, 2]`
     /// the parameters' coordinates.
+    ///
+    /// Each window's squared errors are weighted by the inverse of its
+    /// mean square (at least [`WEIGHT_FLOOR`]): relative errors, so that a
+    /// swing of 0.05 rad counts as much as one of 1.5 rad (in absolute
+    /// terms its errors are a thousandth as large, and an unweighted loss
+    /// leaves the small swings, the commonest on real rigs, unfitted).
+    /// The parts reported are the unweighted means, comparable with the
+    /// paper's family's.
     pub fn losses(
         &self,
         x: Tensor<3>,
@@ -113,22 +121,42 @@ impl Bilinear {
         let [b, t, s] = x.dims();
         let y = self.enc.forward(x.clone(), act);
         let [_, _, l] = y.dims();
+        // Per window: 1 / mean square, [B].
+        let weight = x
+            .clone()
+            .powi_scalar(2)
+            .mean_dim(2)
+            .mean_dim(1)
+            .reshape([b])
+            .clamp_min(WEIGHT_FLOOR)
+            .recip()
+            .detach();
+        // Per window: the mean square of `e` [B, T', D], [B].
+        let per_window = |e: Tensor<3>| {
+            let [bb, _, _] = e.dims();
+            e.powi_scalar(2).mean_dim(2).mean_dim(1).reshape([bb])
+        };
         let x_rec = self.dec.forward(y.clone(), act);
-        let rec = (x_rec - x.clone()).powi_scalar(2).mean();
+        let rec = per_window(x_rec - x.clone());
         let k = fit_bilinear(y.clone(), q.clone(), ridge);
         let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
         let y_pred = rollout(&k, y0, q, t - 1);
         let x_pred = self.dec.forward(y_pred.clone(), act);
-        let x_next = x.slice([0..b, 1..t, 0..s]);
-        let pred = (x_pred - x_next).powi_scalar(2).mean();
-        let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
-        let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
+        let pred = per_window(x_pred - x.clone().slice([0..b, 1..t, 0..s]));
+        let lin = per_window(y_pred - y.slice([0..b, 1..t, 0..l]));
+        let weighted = |v: &Tensor<1>| (v.clone() * weight.clone()).mean();
+        let total = weighted(&rec) + weighted(&pred) + weighted(&lin).mul_scalar(w_lin);
         Losses {
             total,
-            parts: [rec, pred, lin],
+            parts: [rec.mean(), pred.mean(), lin.mean()],
         }
     }
 }
+
+/// Least mean square of a window's normalised states its weight divides
+/// by (a window at rest would otherwise weigh without bound): a swing of
+/// about 0.01 rad with the rig blob's normalisation.
+pub const WEIGHT_FLOOR: f64 = 1e-3;
 
 impl Trainable for Bilinear {
     const PARTS: [&'static str; 3] = ["rec", "pred", "lin"];
@@ -153,9 +181,12 @@ mod tests {
     /// quadratic in `q1` (the Taylor polynomials of a rotation by
     /// `0.2 + 0.05 q1`, block-scaled). The fit recovers them, so the
     /// one-step prediction from the fitted `F(q)` matches the data. The
-    /// data are exact and the ridge 1e-9 of the trace: the f32
-    /// Gauss-Jordan over 64 columns leaves errors of about 1e-5 of the
-    /// data's scale (1); the tolerance is 1e-3.
+    /// data are exact and the ridge 1e-9 of the trace, but the columns
+    /// `y`, `q_1 y`, `q_1^2 y` are nearly collinear and the f32
+    /// Gauss-Jordan over 64 of them leaves one-step errors near 1e-2 of
+    /// the data's scale (1; measured 9.8e-3): the tolerance is 2e-2. A
+    /// block in the wrong place or transposed errs by 0.1 or more. (The
+    /// export refits in f64, `export::refit::global_bilinear`.)
     #[test]
     fn the_fit_recovers_parameter_dependent_dynamics() {
         let device = Device::flex();
@@ -195,6 +226,6 @@ mod tests {
             .try_to_vec::<f32>()
             .unwrap();
         let worst = err.iter().fold(0.0f32, |a, v| a.max(*v));
-        assert!(worst < 1e-3, "worst one-step error {worst}");
+        assert!(worst < 2e-2, "worst one-step error {worst}");
     }
 }
