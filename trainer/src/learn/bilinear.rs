@@ -102,14 +102,6 @@ pub fn rollout(k: &BilinearKoopman, y0: Tensor<2>, q: Tensor<2>, steps: usize) -
 impl Bilinear {
     /// Losses of one batch: `x` `[B, T, state]` normalised, `q` `[B, 2]`
     /// the parameters' coordinates.
-    ///
-    /// Each window's squared errors are weighted by the inverse of its
-    /// mean square (at least [`WEIGHT_FLOOR`]): relative errors, so that a
-    /// swing of 0.05 rad counts as much as one of 1.5 rad (in absolute
-    /// terms its errors are a thousandth as large, and an unweighted loss
-    /// leaves the small swings, the commonest on real rigs, unfitted).
-    /// The parts reported are the unweighted means, comparable with the
-    /// paper's family's.
     pub fn losses(
         &self,
         x: Tensor<3>,
@@ -121,42 +113,22 @@ impl Bilinear {
         let [b, t, s] = x.dims();
         let y = self.enc.forward(x.clone(), act);
         let [_, _, l] = y.dims();
-        // Per window: 1 / mean square, [B].
-        let weight = x
-            .clone()
-            .powi_scalar(2)
-            .mean_dim(2)
-            .mean_dim(1)
-            .reshape([b])
-            .clamp_min(WEIGHT_FLOOR)
-            .recip()
-            .detach();
-        // Per window: the mean square of `e` [B, T', D], [B].
-        let per_window = |e: Tensor<3>| {
-            let [bb, _, _] = e.dims();
-            e.powi_scalar(2).mean_dim(2).mean_dim(1).reshape([bb])
-        };
         let x_rec = self.dec.forward(y.clone(), act);
-        let rec = per_window(x_rec - x.clone());
+        let rec = (x_rec - x.clone()).powi_scalar(2).mean();
         let k = fit_bilinear(y.clone(), q.clone(), ridge);
         let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
         let y_pred = rollout(&k, y0, q, t - 1);
         let x_pred = self.dec.forward(y_pred.clone(), act);
-        let pred = per_window(x_pred - x.clone().slice([0..b, 1..t, 0..s]));
-        let lin = per_window(y_pred - y.slice([0..b, 1..t, 0..l]));
-        let weighted = |v: &Tensor<1>| (v.clone() * weight.clone()).mean();
-        let total = weighted(&rec) + weighted(&pred) + weighted(&lin).mul_scalar(w_lin);
+        let x_next = x.slice([0..b, 1..t, 0..s]);
+        let pred = (x_pred - x_next).powi_scalar(2).mean();
+        let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
+        let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
         Losses {
             total,
-            parts: [rec.mean(), pred.mean(), lin.mean()],
+            parts: [rec, pred, lin],
         }
     }
 }
-
-/// Least mean square of a window's normalised states its weight divides
-/// by (a window at rest would otherwise weigh without bound): a swing of
-/// about 0.01 rad with the rig blob's normalisation.
-pub const WEIGHT_FLOOR: f64 = 1e-3;
 
 impl Trainable for Bilinear {
     const PARTS: [&'static str; 3] = ["rec", "pred", "lin"];
