@@ -258,3 +258,94 @@ fn estimate_plots_each_rollout() {
         assert!(png.starts_with(b"\x89PNG"), "rollout {id}");
     }
 }
+
+/// The bilinear family end to end, as a user makes a blob for their rig:
+/// lab-like training rollouts, `train --model bilinear` (20 iterations: the
+/// plumbing, not the model's quality, which `docs/bilinear.md` reports),
+/// `export` (calibrated on held-out rollouts drawn as the training set
+/// was), then `estimate` and `lab-check` with the blob. The blob is
+/// bilinear, a string's, without a gain schedule, and every length says so.
+#[test]
+fn a_bilinear_blob_for_a_string_trains_exports_and_estimates() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    run_ok(
+        koopman()
+            .args(["train", "--model", "bilinear", "--rig", "simple"])
+            .args(["--lengths", "0.2,1.2", "--g", "9.81", "--dt", "0.04"])
+            .args(["--theta0", "0.1,1.0", "--effect", "viscous:0..0.1"])
+            .args([
+                "--lab-rollouts",
+                "40",
+                "--rollout-steps",
+                "96",
+                "--window",
+                "64",
+            ])
+            .args(["--batch", "32", "--iterations", "20", "--quiet", "--run"])
+            .arg(&run),
+    );
+    let blob = dir.path().join("rig.kkf");
+    run_ok(koopman().arg("export").arg(&run).arg("--out").arg(&blob));
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(blob.with_extension("json")).unwrap())
+            .unwrap();
+    assert_eq!(info["schedule_steps"], 0, "{info:#}");
+    assert!(info["schedule_check"].is_null());
+    assert_eq!(info["config"]["model"], "bilinear");
+    // Calibrated on lab-like held-out rollouts, right within 5%.
+    assert_eq!(info["trust"]["config"]["accurate"], 0.05);
+    assert!(info["trust"]["config"]["lab"].is_object());
+    let bytes = std::fs::read(&blob).unwrap();
+    let m = estimator::Model::from_bytes(&bytes).unwrap();
+    assert_eq!(m.blob().body.family, estimator::blob::Family::Bilinear);
+    assert_eq!(m.blob().body.rig, estimator::Rig::Simple);
+    // A lab-like string recording, imported at the blob's interval (the
+    // error of another interval names it as written, 0.04), then
+    // estimated at a declared g.
+    let specs = lab(&dir.path().join("lab"), 1);
+    let spec = specs.iter().find(|s| s["rig"] == "simple").unwrap();
+    let rec = dir.path().join("lab").join(spec["file"].as_str().unwrap());
+    let csv = dir.path().join("rec.csv");
+    run_ok(
+        koopman()
+            .arg("import")
+            .arg(&rec)
+            .args(["--dt", "0.05", "--out"])
+            .arg(&csv),
+    );
+    let out = koopman()
+        .arg("estimate")
+        .arg("--weights")
+        .arg(&blob)
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("--dt 0.04`"), "{err}");
+    run_ok(
+        koopman()
+            .arg("import")
+            .arg(&rec)
+            .args(["--dt", "0.04", "--out"])
+            .arg(&csv),
+    );
+    let text = run_ok(
+        koopman()
+            .arg("estimate")
+            .arg("--weights")
+            .arg(&blob)
+            .args(["--g", "9.81", "--steps", "64"])
+            .arg(&csv),
+    );
+    assert!(text.contains("length (simple, m)"), "{text}");
+    let check = run_ok(
+        koopman()
+            .arg("lab-check")
+            .arg("--weights")
+            .arg(&blob)
+            .args(["--recordings", "6"]),
+    );
+    assert!(check.contains("| all | 6 |"), "{check}");
+}

@@ -262,6 +262,16 @@ fn train_model<M: Trainable>(
         init_guard.take();
         let [pa, pb, pc] = &l.parts;
         let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
+        // A loss that is no number ends the run before it reaches the
+        // checkpoint (which would hold weights that are no numbers either).
+        anyhow::ensure!(
+            values[0].is_finite(),
+            "{}: the loss is {} at iteration {}: the batch's least squares or its rollout diverged; try a larger --batch, --grad-clip or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
+            dir.display(),
+            values[0],
+            state.iteration + 1,
+            state.iteration - state.iteration % cfg.checkpoint_every
+        );
         let grads = GradientsParams::from_grads(l.total.backward(), &model);
         model = optim.step(cfg.lr_at(state.iteration), model, grads);
         state.iteration += 1;

@@ -183,8 +183,10 @@ pub fn check_interval(ds: &Dataset, dt: f64) -> Result<(), String> {
 /// (for a filter that predicts across it, see [`model_steps`]).
 pub fn check_interval_with(ds: &Dataset, dt: f64, gaps: bool) -> Result<(), String> {
     let close = |a: f64| (a - dt).abs() <= 0.01 * dt;
-    // As written (a blob's f32 interval, 0.05f32, prints as 0.05).
-    let dt = (dt * 1e9).round() / 1e9;
+    // As written: a blob's f32 interval (0.05f32, 0.04f32) to 7
+    // significant digits, its own precision, prints as 0.05, 0.04.
+    let scale = 10f64.powi(6 - dt.abs().log10().floor() as i32);
+    let dt = (dt * scale).round() / scale;
     if !close(ds.sidecar.dt) {
         return Err(format!(
             "the data are sampled every {} s, the model every {dt} s: resample them (`koopman import --dt {dt}`) or use weights trained at their interval",
