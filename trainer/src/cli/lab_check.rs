@@ -23,6 +23,9 @@ pub struct Args {
     /// Seed of the recordings.
     #[arg(long, default_value_t = LabCheckConfig::default().seed)]
     seed: u64,
+    /// Release angles, rad: LO,HI (log-uniform).
+    #[arg(long, value_delimiter = ',', default_values_t = LabCheckConfig::default().swings)]
+    swings: Vec<f64>,
     /// Tracking noise, rad: LO,HI (each recording's drawn uniformly).
     #[arg(long, value_delimiter = ',', default_values_t = LabCheckConfig::default().noise)]
     noise: Vec<f64>,
@@ -40,10 +43,15 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--noise takes two values, LO,HI");
     };
     anyhow::ensure!(0.0 <= lo && lo <= hi, "--noise: 0 <= LO <= HI");
+    let [s0, s1] = a.swings[..] else {
+        anyhow::bail!("--swings takes two angles, LO,HI");
+    };
+    anyhow::ensure!(0.0 < s0 && s0 < s1, "--swings: 0 < LO < HI");
     let cfg = LabCheckConfig {
         seed: a.seed,
         recordings: a.recordings,
         noise: [lo, hi],
+        swings: [s0, s1],
         ..LabCheckConfig::default()
     };
     anyhow::ensure!(cfg.recordings > 0, "--recordings must be at least 1");
