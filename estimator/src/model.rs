@@ -110,6 +110,19 @@ impl<'a> Tail<'a> {
     }
 }
 
+/// `C^T` of the latent rows `c`.
+pub(crate) fn columns(c: &KoopmanRows) -> KoopmanColumns {
+    let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
+    for (i, row) in c.iter().enumerate() {
+        for (col, v) in ct.iter_mut().zip(row) {
+            if let Some(d) = col.get_mut(i) {
+                *d = *v;
+            }
+        }
+    }
+    ct
+}
+
 /// A [`LATENT_DIM`] square matrix, row-major, read in place.
 pub type LatentRows = [[f32; LATENT_DIM]; LATENT_DIM];
 
@@ -248,14 +261,7 @@ impl<'a> Model<'a> {
             None => *rows(arena, F_AT)?,
             Some(_) => [[0.0; AUG_DIM]; LATENT_DIM],
         };
-        let mut ct = [[0.0; LATENT_DIM]; AUG_DIM];
-        for (i, row) in c.iter().enumerate() {
-            for (col, v) in ct.iter_mut().zip(row) {
-                if let Some(d) = col.get_mut(i) {
-                    *d = *v;
-                }
-            }
-        }
+        let ct = columns(&c);
         let steps = usize::from(blob.body.filter.schedule_steps);
         let tail = if steps > 0 {
             Some(Tail::from_arena(

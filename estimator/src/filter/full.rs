@@ -7,21 +7,8 @@ use super::kernels::{
     unit_lower_inverse, upper_rows,
 };
 use crate::blob::{Family, FilterSpec};
-use crate::model::{KoopmanColumns, KoopmanRows};
+use crate::model::{KoopmanColumns, KoopmanRows, columns};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
-
-/// `C^T` of the rows `c`.
-fn columns(c: &KoopmanRows) -> KoopmanColumns {
-    let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
-    for (i, row) in c.iter().enumerate() {
-        for (col, v) in ct.iter_mut().zip(row) {
-            if let Some(d) = col.get_mut(i) {
-                *d = *v;
-            }
-        }
-    }
-    ct
-}
 
 /// The prior `P`: `diag(prior_var)`.
 pub(super) fn prior_covariance(spec: &FilterSpec) -> Cov {
@@ -336,10 +323,11 @@ impl Estimator<'_> {
         // A variance below zero: the extended filter linearised far from
         // where its model holds (a measurement tens of R's deviations off
         // pushed q out of the training range), and P is no covariance.
-        let variances_ok = p
-            .iter()
-            .enumerate()
-            .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
+        // (The linear family's filter is as it was.)
+        let variances_ok = self.model.family() == Family::Linear
+            || p.iter()
+                .enumerate()
+                .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
         if variances_ok {
             Ok((g, p))
         } else {

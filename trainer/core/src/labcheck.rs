@@ -22,8 +22,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::data::drawn::log_uniform;
 use crate::data::import::{self, ImportOptions};
-use crate::data::lab::{Case, LAB_G, LabSpec, Stamps};
+use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
 use crate::physics::{Effect, EffectKind};
 use crate::protocol::WINDOW;
 use crate::track::track_each;
@@ -128,14 +129,20 @@ const EFFECTS: [(EffectKind, [f64; 2]); 3] = [
     (EffectKind::Coulomb, [0.02, 0.2]),
 ];
 
-/// Log-uniform over `[lo, hi]`.
-fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
-    rng.random_range(lo.ln()..hi.ln()).exp()
-}
-
 /// Runs the estimator of `model` over the recordings of `cfg`, at the
 /// lab's `g` (declared), each imported at the blob's interval.
 pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
+    let range = |[lo, hi]: [f64; 2], positive: bool| {
+        lo.is_finite() && hi.is_finite() && lo <= hi && (!positive || lo > 0.0)
+    };
+    anyhow::ensure!(
+        range(cfg.lengths, true)
+            && range(cfg.swings, true)
+            && range(cfg.seconds, true)
+            && range(cfg.noise, false)
+            && cfg.noise[0] >= 0.0,
+        "lab-check: lengths, swings and durations need finite ranges LO <= HI above 0, the noise a finite range from 0"
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let dt = f64::from(model.blob().body.dt);
     let rig = model.blob().body.rig;
@@ -154,10 +161,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         let theta0 = log_uniform(&mut rng, cfg.swings);
         // At least 12 samples a period.
         let period = 2.0 * std::f64::consts::PI / rig.w2(LAB_G, length).sqrt();
-        let rates: Vec<f64> = [12.0, 25.0, 30.0, 50.0, 100.0]
-            .into_iter()
-            .filter(|r| r * period >= 12.0)
-            .collect();
+        let rates: Vec<f64> = RATES.into_iter().filter(|r| r * period >= 12.0).collect();
         let rate = rates[rng.random_range(0..rates.len())];
         let stamps = if rng.random_bool(0.3) {
             Stamps::Jittered

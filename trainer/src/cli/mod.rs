@@ -39,14 +39,16 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
     })
 }
 
-/// A value of `--g`: a finite, positive number of m/s^2.
+/// A value of `--g`: a finite, positive number of m/s^2 (checked as
+/// `diagnose::Gravity` checks a declared g).
 pub fn gravity(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(g) if g.is_finite() && g > 0.0 => Ok(g),
-        _ => Err(format!(
-            "{s:?}: g must be a positive number of m/s^2 (9.81 on Earth)"
-        )),
-    }
+    let g: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?}: not a number of m/s^2 (9.81 on Earth)"))?;
+    trainer_core::diagnose::Gravity::declared_or_protocol(Some(g))
+        .map(|d| d.g)
+        .map_err(|e| e.to_string())
 }
 
 /// The rig's geometry, as `diagnose` and `close-loop` take it.

@@ -147,6 +147,19 @@ impl Args {
             "window must be in 2..={}",
             ROLLOUT_LEN.max(cfg.rollout_steps)
         );
+        if cfg.model == ModelKind::Bilinear {
+            // Its coordinates are the ranges scaled to [-1, 1].
+            let lo = cfg.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = cfg
+                .lengths
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            anyhow::ensure!(
+                lo < hi && cfg.effect.as_ref().is_none_or(|e| e.range[0] < e.range[1]),
+                "the bilinear family needs a range of lengths (--lengths LO,HI) and of the effect's coefficient, not one value"
+            );
+        }
         anyhow::ensure!(
             cfg.rollout_steps >= cfg.window,
             "--rollout-steps must be at least the window ({})",

@@ -67,8 +67,9 @@ pub struct DrawnSet<'a> {
     pub draw: &'a LabDraw,
 }
 
-/// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty).
-fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+/// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty);
+/// `0 < lo` and both finite, which the callers check.
+pub fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     if hi > lo {
         (rng.random_range(lo.ln()..hi.ln())).exp()
     } else {
@@ -83,7 +84,25 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
         s.lengths[0] > 0.0 && s.theta0[0] > 0.0 && s.dt > 0.0 && s.steps >= 2,
         "a drawn set needs positive lengths, release angles and interval, and 2 steps"
     );
-    anyhow::ensure!(!s.draw.rates.is_empty(), "a drawn set needs a sample rate");
+    let finite = |r: [f64; 2]| r[0].is_finite() && r[1].is_finite() && r[0] <= r[1];
+    anyhow::ensure!(
+        finite(s.lengths) && finite(s.theta0) && finite(s.draw.noise) && s.draw.noise[0] >= 0.0,
+        "a drawn set needs finite ranges LO <= HI of lengths, release angles and noise (noise from 0)"
+    );
+    anyhow::ensure!(
+        s.effect.is_none_or(|e| finite(e.range)),
+        "a drawn set's effect needs a finite range LO <= HI"
+    );
+    anyhow::ensure!(
+        s.draw.rollouts > 0
+            && !s.draw.rates.is_empty()
+            && s.draw.rates.iter().all(|r| r.is_finite() && *r > 0.0),
+        "a drawn set needs at least one rollout and positive sample rates"
+    );
+    anyhow::ensure!(
+        s.draw.quantum.is_finite() && s.draw.quantum > 0.0,
+        "a drawn set needs a positive quantisation step"
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut rollouts = Vec::with_capacity(s.draw.rollouts);
     let mut metas = Vec::with_capacity(s.draw.rollouts);

@@ -30,6 +30,8 @@ use rand_chacha::ChaCha8Rng;
 use super::import::Recording;
 use crate::physics::{Effect, EffectKind, Rig};
 
+/// The frame or sample rates of the lab's recordings, Hz.
+pub const RATES: [f64; 5] = [12.0, 25.0, 30.0, 50.0, 100.0];
 /// Gravity of the lab, m/s^2.
 pub const LAB_G: f64 = 9.81;
 /// Integration step, s.
@@ -166,7 +168,7 @@ impl LabSpec {
         };
         let rate = match stamps {
             Stamps::PerCount => 1000.0,
-            _ => [12.0, 25.0, 30.0, 50.0, 100.0][rng.random_range(0..5)],
+            _ => RATES[rng.random_range(0..RATES.len())],
         };
         // At least 12 samples a period: T = 2 pi / w >= 12 / rate.
         let w2_per_l = rig.w2(LAB_G, 1.0);
