@@ -1,24 +1,10 @@
 //! The `koopman` command line, run as a user runs it.
 
 use std::path::Path;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn koopman() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_koopman"))
-}
-
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{:?}: {}",
-        cmd,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
+mod common;
+use common::{koopman, root, run_ok};
 #[test]
 fn generate_is_deterministic_in_its_seed() {
     let dir = tempfile::tempdir().unwrap();
@@ -324,11 +310,6 @@ fn diagnose_never_panics_on_odd_recordings() {
             }
         }
     }
-}
-
-/// The repository root (the shipped weights live there).
-fn root() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
 #[test]

@@ -7,25 +7,8 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-fn koopman() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_koopman"))
-}
-
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{:?}: {}",
-        cmd,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-/// The repository root (the shipped weights live there).
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap()
-}
+mod common;
+use common::{koopman, root, run_ok};
 
 /// `koopman generate --lab SEED` into `dir`: the files and their truth.
 fn lab(dir: &Path, seed: u64) -> Vec<serde_json::Value> {

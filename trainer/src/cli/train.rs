@@ -149,12 +149,7 @@ impl Args {
         );
         if cfg.model == ModelKind::Bilinear {
             // Its coordinates are the ranges scaled to [-1, 1].
-            let lo = cfg.lengths.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = cfg
-                .lengths
-                .iter()
-                .copied()
-                .fold(f64::NEG_INFINITY, f64::max);
+            let [lo, hi] = cfg.length_range();
             anyhow::ensure!(
                 lo < hi && cfg.effect.as_ref().is_none_or(|e| e.range[0] < e.range[1]),
                 "the bilinear family needs a range of lengths (--lengths LO,HI) and of the effect's coefficient, not one value"

@@ -22,7 +22,7 @@ use estimator::blob::Activation;
 
 use super::config::TrainConfig;
 use super::lstsq;
-use super::model::{Losses, Mlp, Trainable};
+use super::model::{Losses, Mlp, Trainable, koopman_losses};
 
 /// Blocks of the bilinear fit: `F_0, F_1, F_2, F_11`.
 pub const BLOCKS: usize = estimator::blob::BILINEAR_BLOCKS;
@@ -110,23 +110,9 @@ impl Bilinear {
         ridge: f64,
         w_lin: f64,
     ) -> Losses {
-        let [b, t, s] = x.dims();
-        let y = self.enc.forward(x.clone(), act);
-        let [_, _, l] = y.dims();
-        let x_rec = self.dec.forward(y.clone(), act);
-        let rec = (x_rec - x.clone()).powi_scalar(2).mean();
-        let k = fit_bilinear(y.clone(), q.clone(), ridge);
-        let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
-        let y_pred = rollout(&k, y0, q, t - 1);
-        let x_pred = self.dec.forward(y_pred.clone(), act);
-        let x_next = x.slice([0..b, 1..t, 0..s]);
-        let pred = (x_pred - x_next).powi_scalar(2).mean();
-        let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
-        let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
-        Losses {
-            total,
-            parts: [rec, pred, lin],
-        }
+        koopman_losses(&self.enc, &self.dec, x, act, w_lin, |y, y0, steps| {
+            rollout(&fit_bilinear(y, q.clone(), ridge), y0, q, steps)
+        })
     }
 }
 

@@ -190,15 +190,21 @@ impl TrainConfig {
         }
     }
 
-    /// The length as the filter's first parameter: its training range and
-    /// reading.
-    pub fn length_spec(&self) -> ParamSpec<'static> {
+    /// The smallest and the largest training length.
+    pub fn length_range(&self) -> [f64; 2] {
         let lo = self.lengths.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = self
             .lengths
             .iter()
             .copied()
             .fold(f64::NEG_INFINITY, f64::max);
+        [lo, hi]
+    }
+
+    /// The length as the filter's first parameter: its training range and
+    /// reading.
+    pub fn length_spec(&self) -> ParamSpec<'static> {
+        let [lo, hi] = self.length_range();
         ParamSpec {
             name: "length",
             declared: true,

@@ -171,23 +171,41 @@ impl Klm {
         ridge: f64,
         w_lin: f64,
     ) -> Losses {
-        let [b, t, s] = x.dims();
-        let y = self.enc.forward(x.clone(), act);
-        let [_, _, l] = y.dims();
-        let x_rec = self.dec.forward(y.clone(), act);
-        let rec = (x_rec - x.clone()).powi_scalar(2).mean();
-        let k = fit_koopman(y.clone(), p.clone(), ridge);
-        let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
-        let y_pred = rollout(&k, y0, p, t - 1);
-        let x_pred = self.dec.forward(y_pred.clone(), act);
-        let x_next = x.slice([0..b, 1..t, 0..s]);
-        let pred = (x_pred - x_next).powi_scalar(2).mean();
-        let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
-        let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
-        Losses {
-            total,
-            parts: [rec, pred, lin],
-        }
+        koopman_losses(&self.enc, &self.dec, x, act, w_lin, |y, y0, steps| {
+            rollout(&fit_koopman(y, p.clone(), ridge), y0, p, steps)
+        })
+    }
+}
+
+/// A Koopman model's losses of one batch `x` (`[B, T, state]`,
+/// normalised), its family's only in `predict`: reconstruction, and the
+/// `T - 1`-step prediction in state and in latent space (weighted
+/// `w_lin`) of the latent rollout `predict(y, y_0, T - 1)` makes from the
+/// encoded batch `y` (`[B, T, latent]`, which it fits its matrices on)
+/// and its first states `y_0` (`[B, latent]`).
+pub fn koopman_losses(
+    enc: &Mlp,
+    dec: &Mlp,
+    x: Tensor<3>,
+    act: Activation,
+    w_lin: f64,
+    predict: impl FnOnce(Tensor<3>, Tensor<2>, usize) -> Tensor<3>,
+) -> Losses {
+    let [b, t, s] = x.dims();
+    let y = enc.forward(x.clone(), act);
+    let [_, _, l] = y.dims();
+    let x_rec = dec.forward(y.clone(), act);
+    let rec = (x_rec - x.clone()).powi_scalar(2).mean();
+    let y0 = y.clone().slice([0..b, 0..1, 0..l]).reshape([b, l]);
+    let y_pred = predict(y.clone(), y0, t - 1);
+    let x_pred = dec.forward(y_pred.clone(), act);
+    let x_next = x.slice([0..b, 1..t, 0..s]);
+    let pred = (x_pred - x_next).powi_scalar(2).mean();
+    let lin = (y_pred - y.slice([0..b, 1..t, 0..l])).powi_scalar(2).mean();
+    let total = rec.clone() + pred.clone() + lin.clone().mul_scalar(w_lin);
+    Losses {
+        total,
+        parts: [rec, pred, lin],
     }
 }
 

@@ -100,12 +100,6 @@ pub fn device() -> Device {
 /// The training data a config describes (deterministic from its seed).
 pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
     if let Some(draw) = &cfg.lab {
-        let lo = cfg.lengths.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = cfg
-            .lengths
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
         anyhow::ensure!(
             (cfg.g - data::lab::LAB_G).abs() < 1e-9,
             "lab-like training data are recorded at g = {}; the config says {}",
@@ -117,7 +111,7 @@ pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
             "train",
             &data::drawn::DrawnSet {
                 rig: cfg.rig,
-                lengths: [lo, hi],
+                lengths: cfg.length_range(),
                 theta0: cfg.theta0,
                 effect: cfg.effect.as_ref(),
                 dt: cfg.dt,

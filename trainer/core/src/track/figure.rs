@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use estimator::{StepOutput, Trust};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::plot::{COLOURS, bounds, err, png};
@@ -82,6 +83,27 @@ fn fill(label: &str, labels: &[String]) -> RGBAColor {
     shades[k % shades.len()].mix(0.25)
 }
 
+/// Shades each span of `spans` over `[y0, y1]` in its label's fill.
+fn shade<'a, DB>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    spans: &[Span],
+    labels: &[String],
+    [y0, y1]: [f64; 2],
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+{
+    chart
+        .draw_series(spans.iter().map(|s| {
+            Rectangle::new(
+                [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
+                fill(&s.label, labels).filled(),
+            )
+        }))
+        .map_err(err)?;
+    Ok(())
+}
+
 /// Draws the figure of `trace` into `path` (PNG).
 pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
     let panels = 2 + usize::from(trace.effect.is_some());
@@ -143,14 +165,7 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
             .y_desc(label)
             .draw()
             .map_err(err)?;
-        for s in &spans {
-            chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
-                    fill(&s.label, &labels).filled(),
-                )))
-                .map_err(err)?;
-        }
+        shade(&mut chart, &spans, &labels, [y0, y1])?;
         let clip = |v: f64| v.clamp(y0, y1);
         let band: Vec<(f64, f64)> = pts
             .iter()
@@ -201,14 +216,7 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
         .y_desc("theta (rad)")
         .draw()
         .map_err(err)?;
-    for s in &spans {
-        chart
-            .draw_series(std::iter::once(Rectangle::new(
-                [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
-                fill(&s.label, &labels).filled(),
-            )))
-            .map_err(err)?;
-    }
+    shade(&mut chart, &spans, &labels, [y0, y1])?;
     chart
         .draw_series(LineSeries::new(theta, BLACK.stroke_width(1)))
         .map_err(err)?;
