@@ -211,6 +211,23 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
     Ok(out)
 }
 
+/// Seed of the recordings a rig blob's filter is tuned on at export: not
+/// the lab-check's default (11), nor the calibration's (7 to 9), nor
+/// training's (42).
+pub const TUNING_SEED: u64 = 23;
+
+/// How badly `model` reads the lengths of `cfg`'s recordings: the share
+/// not within 2% at the end plus the share not within 5% after the first
+/// [`WINDOW`] measurements (0 is every one right at both points; the
+/// trust verdict is not counted). What the export's choice of the
+/// filter's `R` minimises.
+pub fn misses(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<f64> {
+    let c = figures(&run(model, cfg)?).all;
+    anyhow::ensure!(c.n > 0, "lab-check: no recordings to score");
+    let n = c.n as f64;
+    Ok((n - c.end_within_2 as f64) / n + (n - c.first_within_5 as f64) / n)
+}
+
 /// Counts over a group of recordings.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Counts {

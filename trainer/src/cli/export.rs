@@ -30,7 +30,9 @@ pub struct Args {
     #[arg(long)]
     q_latent: Option<f64>,
     /// The filter's measurement noise, relative to the one-step
-    /// residual variance (default: the run's `r_latent`).
+    /// residual variance (default: the run's `r_latent`; for a run on
+    /// lab-like recordings, with `q_latent`, the pair that reads held-out
+    /// lab-like recordings best).
     #[arg(long)]
     r_latent: Option<f64>,
 }
@@ -50,7 +52,34 @@ pub fn run(a: Args) -> Result<()> {
                 q_latent: a.q_latent,
                 r_latent: a.r_latent,
             };
-            let info = export::export_with(&a.run, &out, &opts)?;
+            let lab_run = kind == ModelKind::Bilinear && run::read(&a.run)?.0.lab.is_some();
+            let info = if lab_run && a.r_latent.is_none() && a.q_latent.is_none() {
+                // A blob for real rigs: the filter's Q and R chosen on
+                // held-out lab-like recordings.
+                let (info, candidates) = export::export_lab(&a.run, &out)?;
+                for c in &candidates {
+                    super::say(&match (c.score, &c.refused) {
+                        (Some(v), _) => format!(
+                            "Q scale {:>6}, R scale {:>6}: misses {v:.3}",
+                            c.q_latent.unwrap_or(f64::NAN),
+                            c.r_latent
+                        ),
+                        (None, why) => format!(
+                            "Q scale {:>6}, R scale {:>6}: refused ({})",
+                            c.q_latent.unwrap_or(f64::NAN),
+                            c.r_latent,
+                            why.as_deref().unwrap_or("")
+                        ),
+                    })?;
+                }
+                super::say(&format!(
+                    "chose Q scale {}, R scale {}",
+                    info.config.q_latent, info.config.r_latent
+                ))?;
+                info
+            } else {
+                export::export_with(&a.run, &out, &opts)?
+            };
             super::say(&format!(
                 "wrote {} ({} bytes); sigma threshold {:.4e} (train max {:.4e})",
                 out.display(),

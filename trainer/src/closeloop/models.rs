@@ -110,7 +110,7 @@ pub struct NoiseChoice {
     /// The `r_latent` exported.
     pub r_latent: f64,
     /// Each candidate's summed median forecast error over the first parts.
-    pub candidates: Vec<export::RCandidate>,
+    pub candidates: Vec<export::NoiseCandidate>,
 }
 
 /// The filter's latent `R` scales tried (`R = r_latent` times the one-step
@@ -159,7 +159,7 @@ fn train_and_export(
         .iter()
         .filter(|r| forecast::windows(r.xs.len(), 0, dt).is_ok())
         .collect();
-    let (info, candidates) = export::export_selecting_r(&run, &blob, &R_CANDIDATES, |m| {
+    let (info, candidates) = export::export_selecting_noise(&run, &blob, &R_CANDIDATES.map(|r| (None, r)), |m| {
         anyhow::ensure!(
             !scored.is_empty(),
             "no first part is long enough for forecasts of its own"

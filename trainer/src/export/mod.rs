@@ -24,6 +24,7 @@ use trainer_core::calibrate::{
 };
 use trainer_core::data::states_f32;
 use trainer_core::io::write_atomic;
+use trainer_core::labcheck;
 use trainer_core::protocol::{BURN_IN, WINDOW};
 
 pub mod baseline;
@@ -34,7 +35,7 @@ pub mod schedule;
 use crate::learn::bilinear::Bilinear;
 use crate::learn::config::{ModelKind, TrainConfig};
 use crate::learn::model::Klm;
-use crate::learn::run::{self, RunPaths, device, load_model, training_data};
+use crate::learn::run::{self, RunPaths, device, dynamics_data, load_model, training_data};
 use blob::{BlobParts, blob_bytes};
 use refit::{global_bilinear, global_koopman};
 use schedule::ScheduleCheck;
@@ -114,10 +115,12 @@ pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<Expor
     Prepared::open(dir)?.finish(opts, out)
 }
 
-/// One candidate of [`export_selecting_r`]: the latent `R` scale and its
-/// score (`None`: the scorer refused it, with why).
+/// One candidate of [`export_selecting_noise`]: the filter's noise scales
+/// and their score (`None`: the scorer refused them, with why).
 #[derive(Debug, Clone, Serialize)]
-pub struct RCandidate {
+pub struct NoiseCandidate {
+    /// `q_latent` (`None`: the run's own).
+    pub q_latent: Option<f64>,
     /// `r_latent`.
     pub r_latent: f64,
     /// The scorer's value (lower is better).
@@ -126,24 +129,26 @@ pub struct RCandidate {
     pub refused: Option<String>,
 }
 
-/// Exports run `dir` to `out` with the filter's latent `R` scale chosen
-/// from `candidates`: each makes a draft blob (the run's other settings,
-/// the sigma threshold set, the trust checks open), `score` scores it
-/// (lower is better), and the best is exported and calibrated. Where no
-/// candidate can be scored, the run's own `r_latent` is exported. Returns
-/// the export and every candidate's score.
-pub fn export_selecting_r(
+/// Exports run `dir` to `out` with the filter's latent noise scales
+/// (`q_latent`, `r_latent`) chosen from `candidates`: each makes a draft
+/// blob (the run's other settings, the sigma threshold set, the trust
+/// checks open), `score` scores it (lower is better), and the best is
+/// exported and calibrated. Where no candidate can be scored, the run's
+/// own scales are exported. Returns the export and every candidate's
+/// score.
+pub fn export_selecting_noise(
     dir: &Path,
     out: &Path,
-    candidates: &[f64],
+    candidates: &[(Option<f64>, f64)],
     mut score: impl FnMut(&Model<'_>) -> Result<f64>,
-) -> Result<(ExportInfo, Vec<RCandidate>)> {
+) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
     let mut prepared = Prepared::open(dir)?;
     let mut scored = Vec::with_capacity(candidates.len());
     // The best draft so far, kept to be calibrated and written.
     let mut best: Option<(f64, ExportOptions, Vec<u8>, Draft)> = None;
-    for &r in candidates {
+    for &(q, r) in candidates {
         let opts = ExportOptions {
+            q_latent: q,
             r_latent: Some(r),
             ..ExportOptions::default()
         };
@@ -164,7 +169,8 @@ pub fn export_selecting_r(
             Ok((v, ..)) => (None, Some(format!("score {v}"))),
             Err(e) => (None, Some(format!("{e:#}"))),
         };
-        scored.push(RCandidate {
+        scored.push(NoiseCandidate {
+            q_latent: q,
             r_latent: r,
             score,
             refused,
@@ -175,6 +181,30 @@ pub fn export_selecting_r(
         None => prepared.finish(&ExportOptions::default(), out)?,
     };
     Ok((info, scored))
+}
+
+/// The filter's process-noise scales (`q_latent`) a run on lab-like
+/// recordings chooses from. Its dynamics are fitted without noise, so the
+/// one-step residual they scale is the model's error alone, small.
+pub const LAB_Q_CANDIDATES: [f64; 5] = [1e-4, 3e-4, 1e-3, 3e-3, 1e-2];
+/// The measurement-noise scales (`r_latent`) it chooses from.
+pub const LAB_R_CANDIDATES: [f64; 5] = [0.03, 0.1, 0.3, 1.0, 3.0];
+
+/// Exports a run on lab-like recordings (a blob for real rigs) to `out`,
+/// its filter's noise scales the pair of [`LAB_Q_CANDIDATES`] and
+/// [`LAB_R_CANDIDATES`] with the fewest [`labcheck::misses`] on held-out
+/// lab-like recordings ([`labcheck::TUNING_SEED`]); returns the export
+/// and every pair's score.
+pub fn export_lab(dir: &Path, out: &Path) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
+    let cfg = labcheck::LabCheckConfig {
+        seed: labcheck::TUNING_SEED,
+        ..labcheck::LabCheckConfig::default()
+    };
+    let pairs: Vec<(Option<f64>, f64)> = LAB_Q_CANDIDATES
+        .iter()
+        .flat_map(|&q| LAB_R_CANDIDATES.iter().map(move |&r| (Some(q), r)))
+        .collect();
+    export_selecting_noise(dir, out, &pairs, |m| labcheck::misses(m, &cfg))
 }
 
 /// A KLM run opened for export: its model loaded and `F` refitted over its
@@ -208,7 +238,9 @@ impl Prepared {
         let ds = training_data(&cfg)?;
         let (parts, residual_var) = if cfg.model == ModelKind::Bilinear {
             let model: Bilinear = load_model(&paths, &cfg, &device)?;
-            let (blocks, residual_var) = global_bilinear(&model, &ds, &state.norm, &cfg)?;
+            // A lab run's dynamics are fitted on its noise-free twin.
+            let fit = dynamics_data(&cfg)?;
+            let (blocks, residual_var) = global_bilinear(&model, &fit, &state.norm, &cfg)?;
             (
                 BlobParts::bilinear(&model.enc, &model.dec, &blocks),
                 residual_var,

@@ -136,6 +136,20 @@ pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
     ))
 }
 
+/// The transitions a run's dynamics are fitted on at export: a lab run's
+/// training set drawn again without noise ([`data::drawn::LabDraw::noise_free`],
+/// same seed, so the same lengths, swings and rates), the training set
+/// itself otherwise.
+pub fn dynamics_data(cfg: &TrainConfig) -> Result<Dataset> {
+    match &cfg.lab {
+        Some(draw) => training_data(&TrainConfig {
+            lab: Some(draw.noise_free()),
+            ..cfg.clone()
+        }),
+        None => training_data(cfg),
+    }
+}
+
 /// Loads the model of a run.
 pub fn load_model<M: Trainable>(paths: &RunPaths, cfg: &TrainConfig, device: &Device) -> Result<M> {
     load_module(&paths.model, cfg, device)
