@@ -21,9 +21,14 @@
 //!   swing smaller or larger than trained, damping, friction, a torque or
 //!   a sensor offset: each moves the state off the orbits a pendulum of
 //!   the estimated length would follow;
-//! - [`Reason::SmallSwing`]: the swing (half the range of `theta` over
-//!   the last [`WINDOW`] to 2 [`WINDOW`] measurements) is below the smallest
-//!   at which held-out rollouts estimate the length within 20%. A model is
+//! - [`Reason::SmallSwing`]: the widest swing since the start (the
+//!   largest half range of `theta` over any [`WINDOW`] to 2 [`WINDOW`]
+//!   measurements) is below the smallest at which held-out rollouts
+//!   estimate the length accurately (the blob's
+//!   [`TrustSpec::min_swing`](crate::blob::TrustSpec::min_swing)). The
+//!   widest, not the latest: the estimate holds what every swing so far
+//!   told it, so a swing that has since died down (the end of a long
+//!   recording) still vouches for it. A model is
 //!   least accurate at the edges of what it was trained on; the shipped
 //!   one reads lengths 20 to 30% long from swings released near the
 //!   bottom of its training range, and nothing else in the verdict sees
@@ -319,6 +324,8 @@ pub(crate) struct SwingWindow {
     previous: Block,
     /// Measurements in the current block.
     n: u16,
+    /// The widest swing read so far (0 before any).
+    widest: f32,
 }
 
 impl SwingWindow {
@@ -345,6 +352,16 @@ impl SwingWindow {
         }
         self.current.add(theta, rate);
         self.n += 1;
+        let w = self.current.merge(&self.previous);
+        self.widest = self.widest.max(0.5 * (w.hi[0] - w.lo[0]));
+    }
+
+    /// The widest swing since the start: the largest half range of
+    /// `theta` over the last one to two windows at any measurement so far
+    /// (`None` before any angle was measured). Not NaN: a NaN angle never
+    /// reaches the window (the filter refuses it first).
+    pub fn widest(&self) -> Option<f32> {
+        (self.n > 0).then_some(self.widest)
     }
 
     /// The swing and its unevenness from one merge of the two blocks:
@@ -516,6 +533,35 @@ mod verdict_tests {
         }
         let a = w.swing().unwrap();
         assert!((a - 0.2).abs() < 1e-3, "{a}");
+        // The widest remembers the big one.
+        let widest = w.widest().unwrap();
+        assert!((widest - 1.0).abs() < 1e-3, "{widest}");
+    }
+
+    /// The widest swing is the largest recent swing at any measurement:
+    /// none before a measurement, it grows with a growing swing and does
+    /// not shrink with a dying one.
+    #[test]
+    fn widest_swing_never_shrinks() {
+        let mut w = SwingWindow::default();
+        assert_eq!(w.widest(), None);
+        let mut last = 0.0f32;
+        // A swing growing from 0.1 to 0.5, then dying to 0.01, over ten
+        // windows at 20 samples a period.
+        for k in 0..10 * WINDOW {
+            let size = if k < 5 * WINDOW {
+                0.1 + 0.4 * k as f32 / (5 * WINDOW) as f32
+            } else {
+                0.5 - 0.49 * (k - 5 * WINDOW) as f32 / (5 * WINDOW) as f32
+            };
+            let ph = k as f32 * core::f32::consts::PI / 10.0;
+            w.push(size * libm::cosf(ph), -size * libm::sinf(ph));
+            let now = w.widest().unwrap();
+            assert!(now >= last, "the widest shrank at {k}: {last} -> {now}");
+            last = now;
+        }
+        assert!((last - 0.5).abs() < 0.01, "{last}");
+        assert!(w.swing().unwrap() < 0.2);
     }
 
     /// The unevenness is the middle of the range over its half, measured

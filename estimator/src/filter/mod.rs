@@ -113,12 +113,15 @@ pub struct StepOutput {
     /// Measurements off the training envelope among the last
     /// [`WINDOW`](crate::WINDOW).
     pub off_envelope: u16,
-    /// The swing: half the range of `theta` over the last
-    /// [`WINDOW`](crate::WINDOW) to 2 [`WINDOW`](crate::WINDOW)
-    /// measurements (NaN when only encoded measurements were given).
+    /// The widest swing since the start: the largest half range of
+    /// `theta` over any [`WINDOW`](crate::WINDOW) to 2
+    /// [`WINDOW`](crate::WINDOW) measurements (NaN when only encoded
+    /// measurements were given); what the swing check reads.
     pub swing: f32,
-    /// Its unevenness: how far the middle of that range lies from zero,
-    /// as a share of the swing (`None` where it is not measured: see
+    /// The latest swing's unevenness: how far the middle of the range of
+    /// `theta` over the last [`WINDOW`](crate::WINDOW) to 2
+    /// [`WINDOW`](crate::WINDOW) measurements lies from zero, as a share
+    /// of its half (`None` where it is not measured: see
     /// [`crate::trust`]).
     pub unevenness: Option<f32>,
 }
@@ -534,10 +537,8 @@ impl<'m> Estimator<'m> {
         }
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
-        let (swing, unevenness) = match self.swing.read() {
-            Some((s, u)) => (Some(s), u),
-            None => (None, None),
-        };
+        let unevenness = self.swing.read().and_then(|(_, u)| u);
+        let swing = self.swing.widest();
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,

@@ -159,16 +159,17 @@ fn train_and_export(
         .iter()
         .filter(|r| forecast::windows(r.xs.len(), 0, dt).is_ok())
         .collect();
-    let (info, candidates) = export::export_selecting_noise(&run, &blob, &R_CANDIDATES.map(|r| (None, r)), |m| {
-        anyhow::ensure!(
-            !scored.is_empty(),
-            "no first part is long enough for forecasts of its own"
-        );
-        scored
-            .iter()
-            .map(|r| Ok(forecast::klm(m, &r.xs, 0, dt)?.median))
-            .sum()
-    })?;
+    let (info, candidates) =
+        export::export_selecting_noise(&run, &blob, &R_CANDIDATES.map(|r| (None, r)), |m| {
+            anyhow::ensure!(
+                !scored.is_empty(),
+                "no first part is long enough for forecasts of its own"
+            );
+            scored
+                .iter()
+                .map(|r| Ok(forecast::klm(m, &r.xs, 0, dt)?.median))
+                .sum()
+        })?;
     Ok((
         blob,
         NoiseChoice {

@@ -13,9 +13,11 @@
 //! Angles are converted to radians. Where the rate is missing it is derived
 //! by a smoothing differentiator: the least-squares slope over a centred
 //! window of `2m + 1` samples, `theta_dot_i = sum_k k theta_{i+k} / (h sum_k k^2)`
-//! (Savitzky-Golay, first derivative, linear or quadratic fit), the window
-//! shrinking at the ends, a twentieth of the swing's period wide on each
-//! side unless given. The angle is smoothed by the same window's quadratic.
+//! (Savitzky-Golay, first derivative, linear or quadratic fit), a
+//! twentieth of the swing's period wide on each side unless given; within
+//! a half window of either end, the quadratic over the full window that
+//! stops at the end, read at the sample (not a difference of the end
+//! samples, whose noise is the tracker's over one step). The angle is smoothed by the same window's quadratic.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
 //! an optional trim. Uneven time stamps are differentiated at their times,
 //! over a window of the same time ([`differentiate_uneven`]). A gap in the
