@@ -28,6 +28,13 @@
 //! frequencies move with the parameters (see "The bilinear arena"). A
 //! format-7 blob is a rod's, linear; `koopman calibrate` upgrades it.
 //!
+//! Format 9 added the largest mean normalised innovation the verdict
+//! trusts ([`TrustSpec::max_nis`]: measurements that disagree with the
+//! model while the states stay on the envelope) and how far the measured
+//! rate may disagree with the angle's change over the blob's interval
+//! ([`TrustSpec::max_rate_mismatch`]: measurements at another interval).
+//! `koopman calibrate` upgrades a format-8 blob.
+//!
 //! Format 7 added the largest unevenness of the swing the verdict trusts
 //! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
 //! that the envelope does not see.
@@ -97,7 +104,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 8;
+pub const FORMAT_VERSION: u16 = 9;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -587,8 +594,8 @@ pub struct TrustSpec<'a> {
     /// The training envelope.
     #[serde(borrow)]
     pub envelope: Envelope<'a>,
-    /// Most measurements off the envelope among the last
-    /// [`WINDOW`](crate::WINDOW) that still pass.
+    /// Most measurements off the envelope among any
+    /// [`WINDOW`](crate::WINDOW) consecutive ones that still pass.
     pub envelope_max_off: u16,
     /// The first parameter's coordinate range that passes, `[lo, hi]`.
     pub range: [f32; 2],
@@ -606,6 +613,13 @@ pub struct TrustSpec<'a> {
     /// of its range lies from zero, as a share of it: see
     /// [`crate::trust`]; format 7).
     pub max_unevenness: f32,
+    /// The largest mean normalised innovation squared since the burn-in
+    /// that passes ([`crate::trust`]; format 9).
+    pub max_nis: f32,
+    /// The largest departure from 1 of the angle's change over the change
+    /// the measured rates predict that passes ([`crate::trust`]; format
+    /// 9).
+    pub max_rate_mismatch: f32,
 }
 
 impl TrustSpec<'_> {
@@ -617,7 +631,9 @@ impl TrustSpec<'_> {
             && lo <= hi
             && self.min_swing.is_finite()
             && self.min_swing >= 0.0
-            && self.max_unevenness >= 0.0;
+            && self.max_unevenness >= 0.0
+            && self.max_nis >= 0.0
+            && self.max_rate_mismatch >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
         if finite && stds {

@@ -13,8 +13,10 @@
 //!   positive values only, like a length);
 //! - [`Reason::OutsideRange`]: the first parameter's coordinate lies
 //!   outside the range held-out rollouts reach;
-//! - [`Reason::OutsideEnvelope`]: more of the last [`WINDOW`] measured
-//!   states than calibrated lie outside the training envelope (the blob's
+//! - [`Reason::OutsideEnvelope`]: more of some [`WINDOW`] consecutive
+//!   measured states since the start (the last ones, or any before: the
+//!   estimate remembers them) than calibrated lie outside the training
+//!   envelope (the blob's
 //!   occupancy map, [`crate::blob::Envelope`]): before the burn-in,
 //!   states no training rollout visits; after it, states no training
 //!   rollout of the estimated parameter visits. This is what catches a
@@ -40,6 +42,21 @@
 //!   way. Weak friction leaves the states inside the envelope while the
 //!   length reads 20-30% long; the turning points show it within one
 //!   swing.
+//! - [`Reason::Inconsistent`]: the measurements disagree with the
+//!   model's predictions more than in held-out rollouts: the mean
+//!   normalised innovation squared since the burn-in ([`Consistency`],
+//!   where the filter forms `S^-1`: every update of the extended filter,
+//!   the linear filter's past its gain schedule) above the blob's largest.
+//!   Noise heavier than trained, friction or a torque the model lacks, or
+//!   measurements fed at another interval than the blob's keep the
+//!   innovations large while the states stay on the envelope.
+//! - [`Reason::RateMismatch`]: the measured rate does not match the
+//!   angle's change over the blob's interval ([`Kinematics`]: the
+//!   least-squares ratio of each step's change of `theta` to the change
+//!   the mean of its two rates predicts, `dt` apart, is further from 1
+//!   than the blob allows). Measurements fed at another interval than
+//!   the blob's, or a rate in other units, look like a pendulum of
+//!   another length to everything else.
 //! - [`Reason::GravityUndeclared`]: a parameter the dynamics see only
 //!   through `g / p` (a pendulum's length) is reported while the system's
 //!   gravity was never declared ([`crate::Estimator::with_gravity`],
@@ -75,6 +92,12 @@ pub enum Reason {
     /// The swing does not reach the same angle on both sides: friction, a
     /// torque or a sensor offset, none of which the model knows.
     UnevenSwing,
+    /// The measurements disagree with the model's predictions more than
+    /// in held-out rollouts.
+    Inconsistent,
+    /// The measured rate does not match the angle's change over the
+    /// blob's interval: another interval, or a rate in other units.
+    RateMismatch,
     /// The system's gravity was never declared: a length is read at the
     /// blob's training gravity, which the motion cannot confirm.
     GravityUndeclared,
@@ -89,6 +112,8 @@ impl Reason {
         Reason::OutsideEnvelope,
         Reason::SmallSwing,
         Reason::UnevenSwing,
+        Reason::Inconsistent,
+        Reason::RateMismatch,
         Reason::GravityUndeclared,
     ];
 
@@ -102,6 +127,8 @@ impl Reason {
             Reason::OutsideEnvelope => "state outside training envelope",
             Reason::SmallSwing => "swing below the accurate range",
             Reason::UnevenSwing => "swing uneven: friction, torque or offset",
+            Reason::Inconsistent => "measurements inconsistent with the model",
+            Reason::RateMismatch => "rate does not match the angle: another interval or unit",
             Reason::GravityUndeclared => "g not declared: length read at the blob's g",
         }
     }
@@ -118,6 +145,8 @@ impl Reason {
             Reason::OutsideEnvelope => "outside_envelope",
             Reason::SmallSwing => "small_swing",
             Reason::UnevenSwing => "uneven_swing",
+            Reason::Inconsistent => "inconsistent",
+            Reason::RateMismatch => "rate_mismatch",
             Reason::GravityUndeclared => "g_undeclared",
         }
     }
@@ -130,7 +159,7 @@ impl core::fmt::Display for Reason {
 }
 
 /// How many reasons there are.
-pub const REASONS: usize = 7;
+pub const REASONS: usize = 9;
 
 /// The failed checks, in the order of [`Reason::ALL`].
 pub type Reasons = Vec<Reason, REASONS>;
@@ -193,6 +222,10 @@ pub(crate) struct Checks {
     pub swing_ok: bool,
     /// The swing's unevenness at most the calibrated largest.
     pub even: bool,
+    /// The mean normalised innovation at most the calibrated largest.
+    pub consistent: bool,
+    /// The rate's ratio to the angle's change within the calibrated band.
+    pub rate_ok: bool,
     /// Gravity declared, or no parameter read through it.
     pub gravity_known: bool,
 }
@@ -210,6 +243,8 @@ impl Checks {
             self.in_envelope,
             self.swing_ok,
             self.even,
+            self.consistent,
+            self.rate_ok,
             self.gravity_known,
         ];
         let mut reasons = Reasons::new();
@@ -389,6 +424,69 @@ impl SwingWindow {
     #[cfg(test)]
     pub fn unevenness(&self) -> Option<f32> {
         self.read().and_then(|r| r.1)
+    }
+}
+
+/// The mean of the normalised innovations squared since the burn-in
+/// (`nu^T S^-1 nu` per update): a sum and a count, the count stopping at
+/// [`Spread::CAP`] like the corrections' (past it each enters with weight
+/// `1 / CAP`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Consistency {
+    mean: f32,
+    n: u32,
+}
+
+impl Consistency {
+    /// Records one update's normalised innovation squared.
+    pub fn push(&mut self, nis: f32) {
+        if self.n < Spread::CAP {
+            self.n += 1;
+        }
+        self.mean += (nis - self.mean) / self.n as f32;
+    }
+
+    /// The mean (`None` before any).
+    pub fn mean(&self) -> Option<f32> {
+        (self.n > 0).then_some(self.mean)
+    }
+}
+
+/// Whether the measured rate matches the angle's change: over consecutive
+/// measurements `dt` apart, the least-squares ratio of each change of
+/// `theta` to the change the mean of the two rates predicts,
+/// `sum(d theta v) / sum(v^2)` with `v = (rate_0 + rate_1) dt / 2` (the
+/// trapezoid rule). 1 for a rate in rad/s measured `dt` apart, up to the
+/// trapezoid's error (`(w dt)^2 / 12`, 3% at 12 samples a period) and the
+/// noise; 0.5 for measurements half as far apart as the blob assumes, 2.5
+/// for 2.5 times. A step that was predicted, not measured, breaks the
+/// chain.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Kinematics {
+    prev: Option<[f32; 2]>,
+    sxy: f32,
+    sxx: f32,
+}
+
+impl Kinematics {
+    /// Records one measured angle and rate, `dt` after the previous one.
+    pub fn push(&mut self, theta: f32, rate: f32, dt: f32) {
+        if let Some([t0, r0]) = self.prev {
+            let v = 0.5 * (r0 + rate) * dt;
+            self.sxy += (theta - t0) * v;
+            self.sxx += v * v;
+        }
+        self.prev = Some([theta, rate]);
+    }
+
+    /// A step without a measurement: the next one starts a new pair.
+    pub fn gap(&mut self) {
+        self.prev = None;
+    }
+
+    /// The ratio (`None` until the rate has moved).
+    pub fn ratio(&self) -> Option<f32> {
+        (self.sxx > 0.0).then(|| self.sxy / self.sxx)
     }
 }
 
@@ -612,6 +710,48 @@ mod verdict_tests {
         assert_eq!(SwingWindow::default().unevenness(), None);
     }
 
+    /// The mean of the normalised innovations: none before any, the mean
+    /// after (1, 2, 3, 6 average 3).
+    #[test]
+    fn consistency_is_the_mean_innovation() {
+        let mut c = Consistency::default();
+        assert_eq!(c.mean(), None);
+        for v in [1.0, 2.0, 3.0, 6.0] {
+            c.push(v);
+        }
+        assert_eq!(c.mean(), Some(3.0));
+    }
+
+    /// The kinematic ratio: 1 (within the trapezoid's error) for a sine
+    /// sampled at the interval given, about 0.5 when the samples are half
+    /// as far apart, none at rest, and a gap starts a new pair. A sine
+    /// of 1 rad/s sampled every 0.05 s (126 a period): the trapezoid
+    /// errs by (w dt)^2 / 12 = 2e-4; 1e-3 is asserted.
+    #[test]
+    fn kinematics_read_the_interval() {
+        let ratio = |step: f32, told: f32| {
+            let mut k = Kinematics::default();
+            for i in 0..200 {
+                let t = i as f32 * step;
+                k.push(libm::sinf(t), libm::cosf(t), told);
+            }
+            k.ratio().unwrap()
+        };
+        assert!((ratio(0.05, 0.05) - 1.0).abs() < 1e-3);
+        assert!((ratio(0.025, 0.05) - 0.5).abs() < 1e-3);
+        let mut rest = Kinematics::default();
+        for _ in 0..10 {
+            rest.push(0.1, 0.0, 0.05);
+        }
+        assert_eq!(rest.ratio(), None);
+        // A gap: the pair across it is not counted.
+        let mut k = Kinematics::default();
+        k.push(0.0, 1.0, 0.05);
+        k.gap();
+        k.push(5.0, 1.0, 0.05);
+        assert_eq!(k.ratio(), None);
+    }
+
     /// Every failed check is named, in order; none failed is trusted.
     #[test]
     fn verdict_lists_every_failed_check() {
@@ -623,6 +763,8 @@ mod verdict_tests {
             in_envelope: true,
             swing_ok: true,
             even: true,
+            consistent: true,
+            rate_ok: true,
             gravity_known: true,
         };
         assert_eq!(all_ok.verdict(), Trust::Trusted);
@@ -651,6 +793,8 @@ mod verdict_tests {
             in_envelope: false,
             swing_ok: false,
             even: false,
+            consistent: false,
+            rate_ok: false,
             gravity_known: false,
         };
         assert_eq!(none.verdict().reasons(), &Reason::ALL);

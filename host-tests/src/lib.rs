@@ -19,6 +19,12 @@ pub fn shipped_blob() -> Vec<u8> {
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
+/// The blob for real rigs' bytes (`weights/rig.kkf`).
+pub fn rig_blob() -> Vec<u8> {
+    let p = root().join("weights/rig.kkf");
+    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
 /// The protocol's 64-step window of one test rollout (L = 3.5) that the
 /// instruction counts step through.
 pub use trainer_core::bench::window as bench_window;

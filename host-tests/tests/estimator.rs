@@ -103,7 +103,7 @@ fn malformed_blobs_get_typed_errors() {
     magic[0] ^= 0xff;
     assert_eq!(Model::from_bytes(&magic).unwrap_err(), Error::BlobBadMagic);
     let mut version = bytes.clone();
-    version[4] = 9;
+    version[4] = 10;
     assert_eq!(
         Model::from_bytes(&version).unwrap_err(),
         Error::BlobBadVersion

@@ -31,7 +31,7 @@ impl Estimator<'_> {
         replay.p = prior_covariance(&self.model.blob().body.filter);
         let z = [0.0f32; LATENT_DIM];
         for _ in 0..self.t {
-            let (_, p) = replay.predict_update(&z)?;
+            let (_, p, _) = replay.predict_update(&z)?;
             replay.p = p;
         }
         Ok(replay.p)
@@ -116,7 +116,7 @@ impl Estimator<'_> {
     /// The bilinear family runs the same recursion as an extended filter:
     /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
     /// mean ([`crate::Model::bilinear_step`]).
-    pub(super) fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
+    pub(super) fn predict_update(&self, z: &Latent) -> Result<(Aug, Cov, f32), Error> {
         if self.model.family() == Family::Bilinear {
             return self.predict_update_bilinear(z);
         }
@@ -129,7 +129,7 @@ impl Estimator<'_> {
     /// Jacobian's rows and their transpose live in this frame only (the
     /// linear path's stack stays as it was).
     #[inline(never)]
-    fn predict_update_bilinear(&self, z: &Latent) -> Result<(Aug, Cov), Error> {
+    fn predict_update_bilinear(&self, z: &Latent) -> Result<(Aug, Cov, f32), Error> {
         let (y, c) = self
             .model
             .bilinear_step(&self.g)
@@ -152,7 +152,7 @@ impl Estimator<'_> {
         (c, ct): (&KoopmanRows, &KoopmanColumns),
         y: Latent,
         nu: Latent,
-    ) -> Result<(Aug, Cov), Error> {
+    ) -> Result<(Aug, Cov, f32), Error> {
         let spec = &self.model.blob().body.filter;
 
         // Predict the mean: y' = C g (or F(q) y);  p' = p.
@@ -216,6 +216,9 @@ impl Estimator<'_> {
         // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
         // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
         let w = combo(nu.iter().copied().zip(&si));
+        // The normalised innovation squared, nu^T Si nu: how far the
+        // measurement lies from the prediction in the filter's own units.
+        let nis = dot(&nu, &w);
         // M^T, row a = sum_k P'_yp[k][a] Si_k.
         let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
         for (a, mta) in mt.iter_mut().enumerate() {
@@ -329,7 +332,7 @@ impl Estimator<'_> {
                 .enumerate()
                 .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
         if variances_ok {
-            Ok((g, p))
+            Ok((g, p, nis))
         } else {
             Err(Error::FilterNotPositiveDefinite)
         }

@@ -71,6 +71,7 @@ use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tai
 
 use crate::model::{Model, Tail};
 use crate::trust::{Checks, EnvelopeWindow, Spread, SwingWindow, Trust};
+use crate::trust::{Consistency, Kinematics};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
 
 /// `[y; p]` as a vector.
@@ -110,9 +111,28 @@ pub struct StepOutput {
     pub sigma: [f32; PARAM_DIM],
     /// The verdict, with its reasons ([`crate::trust`]).
     pub trust: Trust,
-    /// Measurements off the training envelope among the last
-    /// [`WINDOW`](crate::WINDOW).
+    /// The most measurements off the training envelope among any
+    /// [`WINDOW`](crate::WINDOW) consecutive ones since the start (within
+    /// the first window, those off so far): what the envelope check
+    /// reads. The estimate holds what every measurement told it, so a
+    /// stretch off the envelope (a swing released wider than trained, a
+    /// knock) leaves it doubtful after the swing has returned.
     pub off_envelope: u16,
+    /// The mean normalised innovation squared since the burn-in,
+    /// `nu^T S^-1 nu` with `nu = z - y'` the innovation and `S` its
+    /// covariance, over the updates whose recursion runs in full (every
+    /// update of the extended filter; the linear filter's once past its
+    /// gain schedule): `None` before any. A model that fits the
+    /// measurements keeps it near what held-out rollouts give; noise
+    /// heavier than trained, friction or a torque the model lacks, or
+    /// measurements at another interval raise it.
+    pub nis: Option<f32>,
+    /// The change of the measured angle over the change the measured
+    /// rates predict, `dt` apart, least squares since the start
+    /// ([`crate::trust`]): 1 for measurements at the blob's interval with
+    /// the rate in rad/s (`None` until the rate has moved, or when only
+    /// encoded measurements were given).
+    pub rate_ratio: Option<f32>,
     /// The widest swing since the start: the largest half range of
     /// `theta` over any [`WINDOW`](crate::WINDOW) to 2
     /// [`WINDOW`](crate::WINDOW) measurements (NaN when only encoded
@@ -154,6 +174,12 @@ pub struct Estimator<'m> {
     bridged: bool,
     spread: Spread,
     window: EnvelopeWindow,
+    /// The most measurements off the envelope in any window so far.
+    worst_off: u16,
+    /// The normalised innovations since the burn-in.
+    consistency: Consistency,
+    /// The measured rate against the angle's change.
+    kinematics: Kinematics,
     swing: SwingWindow,
     /// Declared gravity over the blob's training gravity: what a parameter
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
@@ -182,6 +208,9 @@ impl<'m> Estimator<'m> {
             bridged: false,
             spread: Spread::default(),
             window: EnvelopeWindow::default(),
+            worst_off: 0,
+            consistency: Consistency::default(),
+            kinematics: Kinematics::default(),
             swing: SwingWindow::default(),
             g_ratio: 1.0,
             g_known: !model
@@ -368,6 +397,7 @@ impl<'m> Estimator<'m> {
         self.p = p;
         self.param_std = sqrt_diag(&p, LATENT_DIM);
         self.bridged = true;
+        self.kinematics.gap();
         self.t = self.t.saturating_add(1);
         Ok(self.output([0.0; PARAM_DIM]))
     }
@@ -427,6 +457,9 @@ impl<'m> Estimator<'m> {
             self.bridged = false;
             self.spread = Spread::default();
             self.window = EnvelopeWindow::default();
+            self.worst_off = 0;
+            self.consistency = Consistency::default();
+            self.kinematics = Kinematics::default();
             self.swing = SwingWindow::default();
             self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
@@ -435,6 +468,8 @@ impl<'m> Estimator<'m> {
         let (mut v, mut pb) = (self.v, self.pb);
         // P only where the recursion runs here (it is 1296 bytes to copy).
         let mut p: Option<Cov> = None;
+        // The normalised innovation where the recursion forms S^-1.
+        let mut nis = None;
         let tail = self.model.schedule_tail().filter(|_| self.uses_schedule());
         let (g, param_std) = match (tail, self.model.scheduled_gain(t)) {
             (Some(tail), Some((kt, std))) => {
@@ -452,9 +487,10 @@ impl<'m> Estimator<'m> {
                 (g, sqrt_diag(&pb, 0))
             }
             (None, _) => {
-                let (g, new_p) = self.predict_update(z)?;
+                let (g, new_p, n) = self.predict_update(z)?;
                 let std = sqrt_diag(&new_p, LATENT_DIM);
                 p = Some(new_p);
+                nis = Some(n);
                 (g, std)
             }
         };
@@ -476,6 +512,9 @@ impl<'m> Estimator<'m> {
         self.t = t;
         if t >= u32::from(spec.burn_in) {
             self.spread.push(&correction);
+            if let Some(n) = nis {
+                self.consistency.push(n);
+            }
         }
         self.observe(x);
         Ok(self.output(correction))
@@ -487,14 +526,17 @@ impl<'m> Estimator<'m> {
     /// settling).
     fn observe(&mut self, x: Option<(&State, &State)>) {
         let Some((raw, x_n)) = x else {
+            self.kinematics.gap();
             return;
         };
         let [theta, rate] = *raw;
         self.swing.push(theta, rate);
+        self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
         let q = tail(&self.g).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
         self.window.push(!inside);
+        self.worst_off = self.worst_off.max(self.window.count());
     }
 
     /// The predicted latent `y' = C g = sum_k g_k C^T_k` and the innovation
@@ -549,7 +591,12 @@ impl<'m> Estimator<'m> {
                 .zip(&params)
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
             in_range: q0 >= lo && q0 <= hi,
-            in_envelope: self.window.count() <= calib.envelope_max_off,
+            in_envelope: self.worst_off <= calib.envelope_max_off,
+            consistent: self.consistency.mean().is_none_or(|m| m <= calib.max_nis),
+            rate_ok: self
+                .kinematics
+                .ratio()
+                .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
@@ -563,7 +610,9 @@ impl<'m> Estimator<'m> {
             correction,
             sigma,
             trust: checks.verdict(),
-            off_envelope: self.window.count(),
+            off_envelope: self.worst_off,
+            nis: self.consistency.mean(),
+            rate_ratio: self.kinematics.ratio(),
             swing: swing.unwrap_or(f32::NAN),
             unevenness,
         }

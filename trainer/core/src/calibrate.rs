@@ -79,6 +79,14 @@ pub struct CalibrateConfig {
     pub envelope_alpha: f64,
     /// Share the range check may flag (half on each side).
     pub range_alpha: f64,
+    /// Where set, the range is also held within the training range of
+    /// lengths widened by this fraction on either side (`None`: the
+    /// quantiles alone). The quantiles of held-out estimates include a
+    /// few wild early ones and so span far beyond the lengths trained; a
+    /// length read outside the trained ones by more than the accuracy is
+    /// an extrapolation, whatever the estimates in distribution did.
+    #[serde(default)]
+    pub range_margin: Option<f64>,
     /// Coverage the standard deviations are set for (within 2 std).
     pub coverage: f64,
     /// A length estimate this fraction or more off the truth is wrong
@@ -97,6 +105,18 @@ pub struct CalibrateConfig {
     /// rollouts read about 0.003 (the sampled turning points); a threshold
     /// set by them alone would flag the noise of every real recording.
     pub unevenness_floor: f64,
+    /// Share of in-distribution rollouts the rate check may flag.
+    #[serde(default = "one_percent")]
+    pub rate_alpha: f64,
+    /// The least largest departure of the rate ratio from 1: the errors
+    /// of interval users make are factors (25 against 30 Hz is 17%), and
+    /// clean held-out rollouts alone would set a band of a few tenths of a
+    /// percent that a real recording's differentiated rate misses.
+    #[serde(default = "default_rate_floor")]
+    pub rate_floor: f64,
+    /// Share of in-distribution rollouts the consistency check may flag.
+    #[serde(default = "one_percent")]
+    pub nis_alpha: f64,
     /// Held-out rollouts drawn lab-like (as a blob trained on
     /// `data::drawn` sets was trained), instead of the protocol's.
     pub lab: Option<LabHeldOut>,
@@ -114,6 +134,14 @@ pub struct LabHeldOut {
     pub draw: LabDraw,
 }
 
+fn one_percent() -> f64 {
+    0.01
+}
+
+fn default_rate_floor() -> f64 {
+    0.1
+}
+
 impl Default for CalibrateConfig {
     fn default() -> Self {
         CalibrateConfig {
@@ -128,11 +156,15 @@ impl Default for CalibrateConfig {
             q_bins: 12,
             envelope_alpha: 0.02,
             range_alpha: 0.002,
+            range_margin: None,
             coverage: 0.92,
             accurate: 0.2,
             swing_share: 0.1,
             unevenness_alpha: 0.01,
             unevenness_floor: 0.05,
+            nis_alpha: one_percent(),
+            rate_alpha: one_percent(),
+            rate_floor: default_rate_floor(),
             lab: None,
         }
     }
@@ -164,6 +196,17 @@ pub struct Calibration {
     /// The largest unevenness that passes: that quantile or the floor,
     /// whichever is larger.
     pub max_unevenness: f32,
+    /// The largest mean normalised innovation that passes: the
+    /// calibration set's quantile at `1 - nis_alpha` (after the window and
+    /// after the long run, where measured; every value passes where no
+    /// held-out rollout measured one, as a linear blob on its schedule).
+    pub max_nis: f32,
+    /// The calibration set's quantile at `1 - rate_alpha` of the rate
+    /// ratio's departure from 1 (where measured).
+    pub rate_quantile: f32,
+    /// The largest departure that passes: that quantile or the floor,
+    /// whichever is larger.
+    pub max_rate_mismatch: f32,
     /// On the check set after the window, and after the long run.
     pub check: [CheckFigures; 2],
 }
@@ -279,6 +322,8 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         std_floor: [0.0; PARAM_DIM],
         min_swing: 0.0,
         max_unevenness: f32::MAX,
+        max_nis: f32::MAX,
+        max_rate_mismatch: f32::MAX,
     }
 }
 
@@ -453,6 +498,8 @@ pub fn calibrate(
     let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
     let mut swings = vec![];
     let mut uneven = vec![];
+    let mut nis = vec![];
+    let mut rate = vec![];
     for r in &cal {
         let (a, b) = checkpoints(&m, &r.xs)?;
         let truth = spec.coordinate(r.length as f32);
@@ -464,6 +511,13 @@ pub fn calibrate(
         // Not measured (no two turning points yet): passes.
         let u = |o: &StepOutput| f64::from(o.unevenness.unwrap_or(0.0));
         uneven.push(u(&a).max(u(&b)));
+        if let Some(v) = a.nis.into_iter().chain(b.nis).reduce(f32::max) {
+            nis.push(f64::from(v));
+        }
+        let off = |o: &StepOutput| o.rate_ratio.map(|r| (r - 1.0).abs());
+        rate.push(f64::from(
+            off(&a).into_iter().chain(off(&b)).fold(0.0, f32::max),
+        ));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
         err_long.push(f64::from((b.coordinate[0] - truth).abs()));
         win.push((
@@ -480,6 +534,17 @@ pub fn calibrate(
         ((qs.len() as f64 + 1.0) * cfg.range_alpha / 2.0).floor() as usize,
     );
     let hi = conformal(&mut qs, 1.0 - cfg.range_alpha / 2.0);
+    let (lo, hi) = match cfg.range_margin {
+        Some(m) => {
+            let [lo_l, hi_l] = spec.train_range;
+            let ends = [
+                f64::from(spec.coordinate((f64::from(lo_l) / (1.0 + m)) as f32)),
+                f64::from(spec.coordinate((f64::from(hi_l) * (1.0 + m)) as f32)),
+            ];
+            (lo.max(ends[0].min(ends[1])), hi.min(ends[0].max(ends[1])))
+        }
+        None => (lo, hi),
+    };
     let std_floor = conformal(&mut err_long, cfg.coverage) / 2.0;
     let mut scales: Vec<f64> = win
         .iter()
@@ -491,6 +556,13 @@ pub fn calibrate(
     let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
     let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
     let max_unevenness = unevenness_quantile.max(cfg.unevenness_floor as f32);
+    let max_nis = if nis.is_empty() {
+        f32::MAX
+    } else {
+        conformal(&mut nis, 1.0 - cfg.nis_alpha) as f32
+    };
+    let rate_quantile = conformal(&mut rate, 1.0 - cfg.rate_alpha) as f32;
+    let max_rate_mismatch = rate_quantile.max(cfg.rate_floor as f32);
 
     // 3. The calibrated blob, and what it does on the check set.
     let mut calibrated = base;
@@ -502,6 +574,8 @@ pub fn calibrate(
         std_floor: [std_floor as f32, 0.0],
         min_swing,
         max_unevenness,
+        max_nis,
+        max_rate_mismatch,
     };
     let bytes = blob_bytes(&calibrated)?;
     let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -532,6 +606,9 @@ pub fn calibrate(
         min_swing,
         unevenness_quantile,
         max_unevenness,
+        max_nis,
+        rate_quantile,
+        max_rate_mismatch,
         check,
     };
     Ok((bytes, report))

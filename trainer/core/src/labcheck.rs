@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use crate::data::drawn::log_uniform;
 use crate::data::import::{self, ImportOptions};
 use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
-use crate::physics::{Effect, EffectKind};
+use crate::physics::{Effect, EffectKind, Rig};
 use crate::protocol::WINDOW;
 use crate::track::track_each;
 
@@ -74,6 +74,12 @@ pub struct At {
     pub trust: String,
     /// Why not trusted.
     pub reasons: Vec<String>,
+    /// The mean normalised innovation since the burn-in, where measured.
+    #[serde(default)]
+    pub nis: Option<f32>,
+    /// The rate's ratio to the angle's change, where measured.
+    #[serde(default)]
+    pub rate_ratio: Option<f32>,
 }
 
 impl At {
@@ -90,6 +96,8 @@ impl At {
                 .iter()
                 .map(|r| r.as_str().into())
                 .collect(),
+            nis: out.nis,
+            rate_ratio: out.rate_ratio,
         }
     }
 
@@ -144,71 +152,114 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         "lab-check: lengths, swings and durations need finite ranges LO <= HI above 0, the noise a finite range from 0"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let dt = f64::from(model.blob().body.dt);
     let rig = model.blob().body.rig;
-    let opts = ImportOptions {
-        dt,
-        ..ImportOptions::default()
-    };
-    let fresh = Estimator::new(model)
-        .with_gravity(LAB_G as f32)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut out = Vec::with_capacity(cfg.recordings);
     for k in 0..cfg.recordings {
-        let (kind, [lo, hi]) = EFFECTS[k % EFFECTS.len()];
-        let coefficient = rng.random_range(lo..hi);
-        let length = log_uniform(&mut rng, cfg.lengths);
-        let theta0 = log_uniform(&mut rng, cfg.swings);
-        // At least 12 samples a period.
-        let period = 2.0 * std::f64::consts::PI / rig.w2(LAB_G, length).sqrt();
-        let rates: Vec<f64> = RATES.into_iter().filter(|r| r * period >= 12.0).collect();
-        let rate = rates[rng.random_range(0..rates.len())];
-        let stamps = if rng.random_bool(0.3) {
-            Stamps::Jittered
-        } else {
-            Stamps::Even
+        let (kind, range) = EFFECTS[k % EFFECTS.len()];
+        let spec = draw(&mut rng, cfg, rig, kind, range);
+        let (first, end) =
+            estimate(model, &spec, &mut rng, None, Some(LAB_G)).with_context(|| {
+                format!(
+                    "lab recording {k} ({:.3} m, {:.3} rad)",
+                    spec.length, spec.theta0
+                )
+            })?;
+        let Some(effect) = spec.effects.first() else {
+            anyhow::bail!("lab recording {k} has no dissipation");
         };
-        let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
-        let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
-        let spec = LabSpec {
-            case: Case::Viscous,
-            length,
-            rig,
-            theta0,
-            duration: seconds,
-            rate,
-            stamps,
-            noise,
-            quantum: 0.1f64.to_radians(),
-            effects: vec![Effect::new(kind, coefficient)],
-            offset: 0.0,
-            forcing: None,
-        };
-        let rec = spec.record(&mut rng);
-        let r = import::to_rollout(&rec, k as u32, &opts)
-            .with_context(|| format!("lab recording {k} ({length:.3} m, {theta0:.3} rad)"))?;
-        let mut first = None;
-        let mut n = 0;
-        let tracked = track_each(&mut fresh.clone(), &r, dt, None, |_, o| {
-            n += 1;
-            if n == WINDOW {
-                first = Some(At::of(o, n));
-            }
-        })?;
-        let end = At::of(&tracked.out, tracked.measured);
         out.push(Outcome {
             effect: kind.name().into(),
-            coefficient,
-            length,
-            theta0,
-            rate,
-            noise,
-            seconds,
-            first: first.unwrap_or_else(|| end.clone()),
+            coefficient: effect.coefficient,
+            length: spec.length,
+            theta0: spec.theta0,
+            rate: spec.rate,
+            noise: spec.noise,
+            seconds: spec.duration,
+            first,
             end,
         });
     }
     Ok(out)
+}
+
+/// One recording of `cfg`'s kind from `rng`: the rig's length and release
+/// angle log-uniform, the dissipation `kind` uniform over `range`, a
+/// rate with at least 12 samples a period (evenly stamped or, three times
+/// in ten, with a logger's jitter), the noise and duration uniform.
+pub fn draw(
+    rng: &mut ChaCha8Rng,
+    cfg: &LabCheckConfig,
+    rig: Rig,
+    kind: EffectKind,
+    [lo, hi]: [f64; 2],
+) -> LabSpec {
+    let coefficient = rng.random_range(lo..hi);
+    let length = log_uniform(rng, cfg.lengths);
+    let theta0 = log_uniform(rng, cfg.swings);
+    // At least 12 samples a period.
+    let period = 2.0 * std::f64::consts::PI / rig.w2(LAB_G, length).sqrt();
+    let rates: Vec<f64> = RATES.into_iter().filter(|r| r * period >= 12.0).collect();
+    let rate = rates
+        .get(rng.random_range(0..rates.len().max(1)))
+        .copied()
+        .unwrap_or(RATES[RATES.len() - 1]);
+    let stamps = if rng.random_bool(0.3) {
+        Stamps::Jittered
+    } else {
+        Stamps::Even
+    };
+    let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
+    let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
+    LabSpec {
+        case: Case::Viscous,
+        length,
+        rig,
+        theta0,
+        duration: seconds,
+        rate,
+        stamps,
+        noise,
+        quantum: 0.1f64.to_radians(),
+        effects: vec![Effect::new(kind, coefficient)],
+        offset: 0.0,
+        forcing: None,
+    }
+}
+
+/// `spec` recorded (its noise from `rng`), imported at `dt` (the blob's
+/// interval when `None`) and estimated by `model` at the declared `g`
+/// (`None`: not declared): the estimate after the first [`WINDOW`]
+/// measurements and at the end.
+pub fn estimate(
+    model: &Model<'_>,
+    spec: &LabSpec,
+    rng: &mut ChaCha8Rng,
+    dt: Option<f64>,
+    g: Option<f64>,
+) -> Result<(At, At)> {
+    let dt = dt.unwrap_or(f64::from(model.blob().body.dt));
+    let opts = ImportOptions {
+        dt,
+        ..ImportOptions::default()
+    };
+    let mut fresh = Estimator::new(model);
+    if let Some(g) = g {
+        fresh = fresh
+            .with_gravity(g as f32)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let rec = spec.record(rng);
+    let r = import::to_rollout(&rec, 0, &opts)?;
+    let mut first = None;
+    let mut n = 0;
+    let tracked = track_each(&mut fresh, &r, dt, None, |_, o| {
+        n += 1;
+        if n == WINDOW {
+            first = Some(At::of(o, n));
+        }
+    })?;
+    let end = At::of(&tracked.out, tracked.measured);
+    Ok((first.unwrap_or_else(|| end.clone()), end))
 }
 
 /// Seed of the recordings a rig blob's filter is tuned on at export: not
@@ -357,6 +408,8 @@ mod tests {
             effect: 0.0,
             trust: trust.into(),
             reasons: vec![],
+            nis: None,
+            rate_ratio: None,
         }
     }
 

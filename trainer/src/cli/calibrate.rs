@@ -1,9 +1,9 @@
 //! `koopman calibrate`: sets a blob's trust verdict on held-out rollouts
 //! (`trainer_core::calibrate`) and records how in the JSON beside it. A
-//! blob of the previous format (6, without the unevenness check) is
-//! upgraded: its model, filter and schedule are kept byte for byte. So is
-//! a blob of format 7 (before the rig was recorded): every blob made
-//! before format 8 is a rod's, the protocol's.
+//! blob of an earlier format is upgraded, its model, filter and schedule
+//! kept byte for byte: format 8 (before the consistency check), 7 (before
+//! the rig was recorded: every blob made before format 8 is a rod's, the
+//! protocol's) and 6 (before the unevenness check).
 
 use std::path::{Path, PathBuf};
 
@@ -22,7 +22,7 @@ use trainer_core::io::write_atomic;
 /// figures in the JSON beside it.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The blob (format 8, or 6 or 7 to upgrade).
+    /// The blob (format 9, or 6, 7 or 8 to upgrade).
     blob: PathBuf,
     /// Output path (default: over the input).
     #[arg(long)]
@@ -70,7 +70,69 @@ struct BlobV6<'a> {
     body: BodyV6<'a>,
 }
 
-/// The body of format 7: format 8's without `rig`.
+/// The trust section of formats 7 and 8: without `max_nis`.
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct TrustSpecV8<'a> {
+    #[serde(borrow)]
+    envelope: Envelope<'a>,
+    envelope_max_off: u16,
+    range: [f32; 2],
+    std_scale: [f32; PARAM_DIM],
+    std_floor: [f32; PARAM_DIM],
+    min_swing: f32,
+    max_unevenness: f32,
+}
+
+impl<'a> TrustSpecV8<'a> {
+    /// The current section, every mean innovation trusted (until
+    /// calibrated again).
+    fn current(self) -> TrustSpec<'a> {
+        TrustSpec {
+            envelope: self.envelope,
+            envelope_max_off: self.envelope_max_off,
+            range: self.range,
+            std_scale: self.std_scale,
+            std_floor: self.std_floor,
+            min_swing: self.min_swing,
+            max_unevenness: self.max_unevenness,
+            max_nis: f32::MAX,
+            max_rate_mismatch: f32::MAX,
+        }
+    }
+}
+
+/// The body of format 8: the current one with format 8's trust section.
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct BodyV8<'a> {
+    dt: f32,
+    g: f32,
+    rig: Rig,
+    family: Family,
+    activation: Activation,
+    norm_mu: [f32; STATE_DIM],
+    norm_s: [f32; STATE_DIM],
+    #[serde(borrow)]
+    params: [ParamSpec<'a>; PARAM_DIM],
+    filter: FilterSpec,
+    #[serde(borrow)]
+    trust: TrustSpecV8<'a>,
+    #[serde(borrow)]
+    _pad: &'a [u8],
+    #[serde(borrow)]
+    weights: F32s<'a>,
+}
+
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct BlobV8<'a> {
+    _header: Header,
+    #[serde(borrow)]
+    body: BodyV8<'a>,
+}
+
+/// The body of format 7: format 8's without `rig` and `family`.
 #[derive(Deserialize)]
 #[cfg_attr(test, derive(serde::Serialize))]
 struct BodyV7<'a> {
@@ -83,7 +145,7 @@ struct BodyV7<'a> {
     params: [ParamSpec<'a>; PARAM_DIM],
     filter: FilterSpec,
     #[serde(borrow)]
-    trust: TrustSpec<'a>,
+    trust: TrustSpecV8<'a>,
     #[serde(borrow)]
     _pad: &'a [u8],
     #[serde(borrow)]
@@ -101,8 +163,9 @@ struct BlobV7<'a> {
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
 /// The blob's bytes in the current format: as they are, or a blob of
-/// format 6 or 7 upgraded (a rod's; format 6 with every unevenness
-/// trusted), to be calibrated again by the caller.
+/// format 6, 7 or 8 upgraded (before 8 a rod's; format 6 with every
+/// unevenness trusted, every one before 9 with every mean innovation), to
+/// be calibrated again by the caller.
 fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
     let version = postcard::from_bytes::<Header>(bytes)
         .ok()
@@ -129,6 +192,8 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
                 std_floor: t.std_floor,
                 min_swing: t.min_swing,
                 max_unevenness: f32::MAX,
+                max_nis: f32::MAX,
+                max_rate_mismatch: f32::MAX,
             };
             body(
                 b.dt,
@@ -153,9 +218,29 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
                 [b.norm_mu, b.norm_s],
                 b.params,
                 b.filter,
-                b.trust,
+                b.trust.current(),
                 b.weights,
             )
+        }
+        Some(8) => {
+            let (old, rest) = postcard::take_from_bytes_crc32::<BlobV8>(bytes, CRC.digest())
+                .map_err(unreadable)?;
+            anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
+            let b = old.body;
+            Body {
+                dt: b.dt,
+                g: b.g,
+                rig: b.rig,
+                family: b.family,
+                activation: b.activation,
+                norm_mu: b.norm_mu,
+                norm_s: b.norm_s,
+                params: b.params,
+                filter: b.filter,
+                trust: b.trust.current(),
+                pad: &[],
+                weights: b.weights,
+            }
         }
         // Current, or broken in a way the reader names.
         _ => {
@@ -164,7 +249,7 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
         }
     };
     eprintln!(
-        "{}: format {}, upgraded to {FORMAT_VERSION}, a rod's (model, filter and schedule unchanged)",
+        "{}: format {}, upgraded to {FORMAT_VERSION} (model, filter and schedule unchanged; before format 8, a rod's)",
         path.display(),
         version.unwrap_or(0)
     );
@@ -228,7 +313,7 @@ pub fn run(a: Args) -> Result<()> {
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
     super::say(&format!(
-        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}",
+        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation at most {:.4e}, rate ratio within {:.3} of 1",
         out.display(),
         out_bytes.len(),
         report.envelope_max_off,
@@ -238,7 +323,9 @@ pub fn run(a: Args) -> Result<()> {
         report.std_scale,
         report.std_floor,
         report.min_swing,
-        report.max_unevenness
+        report.max_unevenness,
+        report.max_nis,
+        report.max_rate_mismatch
     ))?;
     for c in &report.check {
         super::say(&format!(
@@ -259,9 +346,67 @@ pub fn run(a: Args) -> Result<()> {
 mod tests {
     use super::*;
 
+    /// The trust section of `t` as formats 7 and 8 wrote it.
+    fn v8_trust<'a>(t: &TrustSpec<'a>) -> TrustSpecV8<'a> {
+        TrustSpecV8 {
+            envelope: t.envelope,
+            envelope_max_off: t.envelope_max_off,
+            range: t.range,
+            std_scale: t.std_scale,
+            std_floor: t.std_floor,
+            min_swing: t.min_swing,
+            max_unevenness: t.max_unevenness,
+        }
+    }
+
+    /// The shipped blob written back as format 8 (its trust section
+    /// without `max_nis` and `max_rate_mismatch`) upgrades to the shipped
+    /// blob with those two checks open, byte for byte; `koopman
+    /// calibrate` then sets them.
+    #[test]
+    fn a_format_8_blob_upgrades_to_the_same_blob() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
+        let shipped = std::fs::read(&path).unwrap();
+        let b = Blob::from_bytes(&shipped).unwrap().body;
+        let old = BlobV8 {
+            _header: Header {
+                version: 8,
+                ..Header::CURRENT
+            },
+            body: BodyV8 {
+                dt: b.dt,
+                g: b.g,
+                rig: b.rig,
+                family: b.family,
+                activation: b.activation,
+                norm_mu: b.norm_mu,
+                norm_s: b.norm_s,
+                params: b.params,
+                filter: b.filter,
+                trust: v8_trust(&b.trust),
+                _pad: &[],
+                weights: b.weights,
+            },
+        };
+        let v8 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
+        assert!(Blob::from_bytes(&v8).is_err(), "format 8 read as current");
+        assert_eq!(current_format(&v8, &path).unwrap(), unchecked(&shipped));
+    }
+
+    /// `bytes` with format 9's two checks open (every mean innovation and
+    /// rate ratio passing): what an upgrade writes before it is calibrated
+    /// again.
+    fn unchecked(bytes: &[u8]) -> Vec<u8> {
+        let mut b = Blob::from_bytes(bytes).unwrap();
+        b.body.trust.max_nis = f32::MAX;
+        b.body.trust.max_rate_mismatch = f32::MAX;
+        blob_bytes(&b).unwrap()
+    }
+
     /// The shipped blob written back as format 7 (its body without the
-    /// rig, the header's version 7) upgrades to the shipped blob, byte for
-    /// byte: the upgrade adds the rod and changes nothing else.
+    /// rig, the header's version 7) upgrades to the shipped blob (format
+    /// 9's checks open), byte for byte: the upgrade adds the rod and
+    /// changes nothing else.
     #[test]
     fn a_format_7_blob_upgrades_to_the_same_blob_with_the_rod() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
@@ -281,14 +426,14 @@ mod tests {
                 norm_s: b.norm_s,
                 params: b.params,
                 filter: b.filter,
-                trust: b.trust,
+                trust: v8_trust(&b.trust),
                 _pad: &[],
                 weights: b.weights,
             },
         };
         let v7 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
         assert!(Blob::from_bytes(&v7).is_err(), "format 7 read as current");
-        assert_eq!(current_format(&v7, &path).unwrap(), shipped);
+        assert_eq!(current_format(&v7, &path).unwrap(), unchecked(&shipped));
         // A current blob passes through; a truncated one is refused.
         assert_eq!(current_format(&shipped, &path).unwrap(), shipped);
         assert!(current_format(&v7[..v7.len() - 9], &path).is_err());

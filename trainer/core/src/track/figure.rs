@@ -265,6 +265,8 @@ mod tests {
             sigma: [0.0; 2],
             trust,
             off_envelope: 0,
+            nis: None,
+            rate_ratio: None,
             swing: 0.5,
             unevenness: None,
         }

@@ -172,7 +172,7 @@ fn quadratic_at(
     let scale = (time(b) - time(a)).max(f64::MIN_POSITIVE);
     let mut m = [[0.0f64; 3]; 3];
     let mut r = [0.0f64; 3];
-    for k in a..=b {
+    for (k, v) in theta.iter().enumerate().take(b + 1).skip(a) {
         let u = (time(k) - time(i)) / scale;
         let p = [1.0, u, u * u];
         for (row, pr) in m.iter_mut().zip(p) {
@@ -181,7 +181,7 @@ fn quadratic_at(
             }
         }
         for (rr, pr) in r.iter_mut().zip(p) {
-            *rr += pr * theta[k];
+            *rr += pr * v;
         }
     }
     let (c0, c1) = match solve3(m, r) {
