@@ -487,7 +487,8 @@ impl<'m> Estimator<'m> {
                 (g, sqrt_diag(&pb, 0))
             }
             (None, _) => {
-                let (g, new_p, n) = self.predict_update(z)?;
+                let mut n = 0.0;
+                let (g, new_p) = self.predict_update(z, &mut n)?;
                 let std = sqrt_diag(&new_p, LATENT_DIM);
                 p = Some(new_p);
                 nis = Some(n);
