@@ -188,6 +188,10 @@ pub struct Calibration {
     pub std_scale: f32,
     /// The standard deviations' floor `b` (coordinate units).
     pub std_floor: f32,
+    /// The effect's scale and floor, where the blob declares one and the
+    /// held-out rollouts carry its truth (else 1 and 0: the filter's).
+    #[serde(default)]
+    pub effect_std: [f32; 2],
     /// The smallest swing that passes, rad (0: all pass).
     pub min_swing: f32,
     /// The calibration set's unevenness quantile at `1 - unevenness_alpha`
@@ -235,6 +239,8 @@ pub struct CheckFigures {
 /// A held-out rollout: the true length and the raw measurements.
 struct Held {
     length: f64,
+    /// The effect's coefficient, where the rollout was drawn with one.
+    effect: Option<f64>,
     xs: Vec<[f32; 2]>,
 }
 
@@ -281,6 +287,7 @@ fn held_out(
             .zip(&ds.sidecar.rollouts)
             .map(|(r, m)| Held {
                 length: m.length,
+                effect: m.effects.values().next().copied(),
                 xs: states_f32(&r.xs),
             })
             .collect());
@@ -294,6 +301,7 @@ fn held_out(
             p.g = rig.g;
             Held {
                 length,
+                effect: None,
                 xs: states_f32(&p.rollout([theta0, 0.0], steps, rig.dt)),
             }
         })
@@ -382,6 +390,20 @@ fn kth(v: &mut [f64], k: usize) -> f64 {
 fn conformal(v: &mut [f64], q: f64) -> f64 {
     let k = ((v.len() as f64 + 1.0) * q).ceil() as usize;
     kth(v, k)
+}
+
+/// The reported standard deviation's floor `b` and scale `a` (see the
+/// module docs): `2 b` covers `coverage` of the errors after the long run
+/// (`long`, the model's own error, which `P` does not hold); then
+/// `2 sqrt((a s)^2 + b^2)` covers as many of the errors after the window
+/// (`window`: error, the filter's std `s`).
+fn std_cover(long: &mut [f64], window: &[(f64, f64)], coverage: f64) -> (f64, f64) {
+    let floor = conformal(long, coverage) / 2.0;
+    let mut scales: Vec<f64> = window
+        .iter()
+        .map(|(e, s)| ((e * e / 4.0 - floor * floor).max(0.0)).sqrt() / s.max(f64::MIN_POSITIVE))
+        .collect();
+    (floor, conformal(&mut scales, coverage).max(1.0))
 }
 
 /// Runs `xs` through a fresh estimator and returns the outputs after
@@ -500,9 +522,22 @@ pub fn calibrate(
     let mut uneven = vec![];
     let mut nis = vec![];
     let mut rate = vec![];
+    // The effect's errors, where the blob declares one and the rollout
+    // was drawn with its coefficient: (after the long run, after the
+    // window with the filter's std there).
+    let effect_spec = base.body.params[1];
+    let (mut e_long, mut e_win) = (vec![], vec![]);
     for r in &cal {
         let (a, b) = checkpoints(&m, &r.xs)?;
         let truth = spec.coordinate(r.length as f32);
+        if let (true, Some(c)) = (effect_spec.declared, r.effect) {
+            let t = effect_spec.coordinate(c as f32);
+            e_long.push(f64::from((b.coordinate[1] - t).abs()));
+            e_win.push((
+                f64::from((a.coordinate[1] - t).abs()),
+                f64::from(a.coordinate_std[1]),
+            ));
+        }
         // Set on the window's estimate: the long run's errors at small
         // swings reach further up (a check set by them flags 11% of the
         // check set rather than 7%, for 2 fewer wrong and trusted).
@@ -545,14 +580,13 @@ pub fn calibrate(
         }
         None => (lo, hi),
     };
-    let std_floor = conformal(&mut err_long, cfg.coverage) / 2.0;
-    let mut scales: Vec<f64> = win
-        .iter()
-        .map(|(e, s)| {
-            ((e * e / 4.0 - std_floor * std_floor).max(0.0)).sqrt() / s.max(f64::MIN_POSITIVE)
-        })
-        .collect();
-    let std_scale = conformal(&mut scales, cfg.coverage).max(1.0);
+    let (std_floor, std_scale) = std_cover(&mut err_long, &win, cfg.coverage);
+    // The effect's, where measured (else as the filter says).
+    let (effect_floor, effect_scale) = if e_long.is_empty() {
+        (0.0, 1.0)
+    } else {
+        std_cover(&mut e_long, &e_win, cfg.coverage)
+    };
     let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
     let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
     let max_unevenness = unevenness_quantile.max(cfg.unevenness_floor as f32);
@@ -570,8 +604,8 @@ pub fn calibrate(
         envelope: Envelope { bits: &bits, ..env },
         envelope_max_off,
         range: [lo as f32, hi as f32],
-        std_scale: [std_scale as f32, 1.0],
-        std_floor: [std_floor as f32, 0.0],
+        std_scale: [std_scale as f32, effect_scale as f32],
+        std_floor: [std_floor as f32, effect_floor as f32],
         min_swing,
         max_unevenness,
         max_nis,
@@ -603,6 +637,7 @@ pub fn calibrate(
         range: [lo as f32, hi as f32],
         std_scale: std_scale as f32,
         std_floor: std_floor as f32,
+        effect_std: [effect_scale as f32, effect_floor as f32],
         min_swing,
         unevenness_quantile,
         max_unevenness,

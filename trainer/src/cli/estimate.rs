@@ -58,9 +58,16 @@ pub fn run(a: Args) -> Result<()> {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("{}: cannot create: {e}", dir.display()))?;
     }
+    // The effect's columns, where the blob declares one.
+    let effect_label = body.params[1]
+        .declared
+        .then(|| format!("{} ({})", names[1], effect_unit(names[1])));
     if !a.json {
+        let effect_head = effect_label
+            .as_ref()
+            .map_or(String::new(), |l| format!("{l:>18}  {:>10}  ", "std"));
         super::say(&format!(
-            "rollout  steps  {:>18}  {:>10}  {:>10}  trust",
+            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  trust",
             rig.length_label(),
             "std",
             "sigma"
@@ -114,8 +121,11 @@ pub fn run(a: Args) -> Result<()> {
             });
             super::say(&v.to_string())?;
         } else {
+            let effect_cols = effect_label.as_ref().map_or(String::new(), |_| {
+                format!("{:>18.4}  {:>10.4}  ", out.params[1], out.param_std[1])
+            });
             super::say(&format!(
-                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {:>10.4e}  {}{}",
+                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {}{}",
                 r.id,
                 n,
                 out.params[0],
