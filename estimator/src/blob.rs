@@ -604,10 +604,11 @@ pub struct TrustSpec<'a> {
     pub std_scale: [f32; PARAM_DIM],
     /// ... and `b` this floor (the model's own error, in the coordinate).
     pub std_floor: [f32; PARAM_DIM],
-    /// The smallest swing (half the range of `theta` over the last
-    /// [`WINDOW`](crate::WINDOW) or more measurements, rad) that passes:
-    /// below it held-out rollouts read the length more than 20% off (0:
-    /// every swing passes).
+    /// The smallest widest swing since the start (half the range of
+    /// `theta` over [`WINDOW`](crate::WINDOW) to 2 [`WINDOW`](crate::WINDOW)
+    /// measurements, rad) that passes: below it held-out rollouts read
+    /// the length off by the calibration's accuracy or more (20% for the
+    /// protocol blob, 5% for the rig blob; 0: every swing passes).
     pub min_swing: f32,
     /// The largest unevenness of the swing that passes (how far the middle
     /// of its range lies from zero, as a share of it: see

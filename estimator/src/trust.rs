@@ -46,7 +46,9 @@
 //!   model's predictions more than in held-out rollouts: the mean
 //!   normalised innovation squared since the burn-in ([`Consistency`],
 //!   where the filter forms `S^-1`: every update of the extended filter,
-//!   the linear filter's past its gain schedule) above the blob's largest.
+//!   the linear filter's only without its gain schedule) above the blob's
+//!   largest, from the [`WINDOW`]-th update on (before it the mean rests
+//!   on a few updates; the calibration reads it from there too).
 //!   Noise heavier than trained, friction or a torque the model lacks, or
 //!   measurements fed at another interval than the blob's keep the
 //!   innovations large while the states stay on the envelope.
@@ -215,8 +217,8 @@ pub(crate) struct Checks {
     pub physical: bool,
     /// The first parameter's coordinate inside the calibrated range.
     pub in_range: bool,
-    /// Measurements off the envelope in the window, at most the calibrated
-    /// number.
+    /// Measurements off the envelope in the worst window so far, at most
+    /// the calibrated number.
     pub in_envelope: bool,
     /// The swing at least the calibrated smallest.
     pub swing_ok: bool,
@@ -339,7 +341,8 @@ impl Block {
 
 /// The swing over the last [`WINDOW`] to 2 [`WINDOW`] measurements, from
 /// two blocks' extremes (the block being filled and the one before it),
-/// with ten floats of state:
+/// with eleven floats of state (ten for the two blocks, one for the
+/// widest swing so far):
 /// - its size: half the range of `theta` (largest less smallest), so that
 ///   a decaying swing is seen decaying and a sensor offset does not
 ///   change it;
@@ -428,7 +431,7 @@ impl SwingWindow {
 }
 
 /// The mean of the normalised innovations squared since the burn-in
-/// (`nu^T S^-1 nu` per update): a sum and a count, the count stopping at
+/// (`nu^T S^-1 nu` per update): a running mean and a count, the count stopping at
 /// [`Spread::CAP`] like the corrections' (past it each enters with weight
 /// `1 / CAP`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -457,7 +460,7 @@ impl Consistency {
 /// `theta` to the change the mean of the two rates predicts,
 /// `sum(d theta v) / sum(v^2)` with `v = (rate_0 + rate_1) dt / 2` (the
 /// trapezoid rule). 1 for a rate in rad/s measured `dt` apart, up to the
-/// trapezoid's error (`(w dt)^2 / 12`, 3% at 12 samples a period) and the
+/// trapezoid's error (`(w dt)^2 / 12`, 2.3% at 12 samples a period) and the
 /// noise; 0.5 for measurements half as far apart as the blob assumes, 2.5
 /// for 2.5 times. A step that was predicted, not measured, breaks the
 /// chain.

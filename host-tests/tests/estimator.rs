@@ -627,3 +627,52 @@ fn friction_that_lowers_the_turning_points_is_named() {
         out.trust
     );
 }
+
+/// The checks that remember: a stretch of measurements off the envelope
+/// (a release at 3 rad, far beyond the trained 2.8) stays counted after
+/// the swing is back on it, and a reset forgets it; a prediction breaks
+/// the rate check's chain, so the ratio is the same as without the pair
+/// across the gap.
+#[test]
+fn the_worst_window_is_remembered_and_a_gap_breaks_the_rate_chain() {
+    let bytes = shipped_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let xs = rollout(3.5, 0);
+    let mut est = Estimator::new(&m).with_gravity(10.0).unwrap();
+    for x in &xs[..40] {
+        est.step(x).unwrap();
+    }
+    for _ in 0..5 {
+        est.step(&[3.0, 0.0]).unwrap();
+    }
+    let mut last = None;
+    for x in &xs[45..] {
+        last = Some(est.step(x).unwrap());
+    }
+    let out = last.unwrap();
+    assert!(
+        xs.len() - 45 > WINDOW,
+        "the off stretch has left the window"
+    );
+    assert!(out.off_envelope >= 5, "{}", out.off_envelope);
+    assert!(out.trust.reasons().contains(&Reason::OutsideEnvelope));
+    est.reset();
+    let out = est.step(&xs[0]).unwrap();
+    assert_eq!(out.off_envelope, 0);
+
+    // The rate chain: measurements, a predicted step, measurements again.
+    let mut a = Estimator::new(&m).with_gravity(10.0).unwrap();
+    for x in &xs[..20] {
+        a.step(x).unwrap();
+    }
+    let before = a.step(&xs[20]).unwrap().rate_ratio.unwrap();
+    a.predict().unwrap();
+    // Far from the last measurement: counted across the gap, the pair
+    // would pull the ratio far off.
+    let after = a
+        .step(&[xs[20][0] + 1.0, xs[20][1]])
+        .unwrap()
+        .rate_ratio
+        .unwrap();
+    assert_eq!(before, after, "the pair across the gap was counted");
+}

@@ -121,8 +121,9 @@ pub struct StepOutput {
     /// The mean normalised innovation squared since the burn-in,
     /// `nu^T S^-1 nu` with `nu = z - y'` the innovation and `S` its
     /// covariance, over the updates whose recursion runs in full (every
-    /// update of the extended filter; the linear filter's once past its
-    /// gain schedule): `None` before any. A model that fits the
+    /// update of the extended filter; the linear filter's only where it
+    /// runs without its gain schedule: a blob without one, or after a
+    /// gap): `None` before any. A model that fits the
     /// measurements keeps it near what held-out rollouts give; noise
     /// heavier than trained, friction or a torque the model lacks, or
     /// measurements at another interval raise it.
@@ -581,6 +582,7 @@ impl<'m> Estimator<'m> {
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
         let unevenness = self.swing.read().and_then(|(_, u)| u);
+        let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
         let swing = self.swing.widest();
         let [lo, hi] = calib.range;
         let checks = Checks {
@@ -593,11 +595,14 @@ impl<'m> Estimator<'m> {
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
             in_range: q0 >= lo && q0 <= hi,
             in_envelope: self.worst_off <= calib.envelope_max_off,
-            consistent: self.consistency.mean().is_none_or(|m| m <= calib.max_nis),
-            rate_ok: self
-                .kinematics
-                .ratio()
-                .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
+            // These two move both ways and are calibrated from the
+            // WINDOW-th update on: before it they pass.
+            consistent: !full_window || self.consistency.mean().is_none_or(|m| m <= calib.max_nis),
+            rate_ok: !full_window
+                || self
+                    .kinematics
+                    .ratio()
+                    .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,

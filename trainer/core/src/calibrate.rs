@@ -30,6 +30,15 @@
 //!    The largest trusted unevenness of the swing: the conformal quantile
 //!    at `1 - unevenness_alpha` of the larger of the two checkpoints', or
 //!    [`CalibrateConfig::unevenness_floor`], whichever is larger.
+//!    The largest mean normalised innovation and the largest departure
+//!    of the rate ratio from 1 (format 9): conformal quantiles at
+//!    `1 - nis_alpha` and `1 - rate_alpha` of each rollout's largest
+//!    from the window on (where the device applies them), the latter no
+//!    less than [`CalibrateConfig::rate_floor`]. Where a
+//!    [`CalibrateConfig::range_margin`] is set, the range is held within
+//!    the trained lengths widened by it. The effect's standard deviation,
+//!    where the blob declares one and the held-out rollouts carry its
+//!    truth, is set as the length's.
 //! 3. **check** (as many again): what the calibrated blob does on rollouts
 //!    it has not seen: the false-flag rate per check and the coverage of
 //!    the length, after the window and after the long run. These are the
@@ -287,7 +296,10 @@ fn held_out(
             .zip(&ds.sidecar.rollouts)
             .map(|(r, m)| Held {
                 length: m.length,
-                effect: m.effects.values().next().copied(),
+                effect: lab
+                    .effect
+                    .as_ref()
+                    .and_then(|e| m.effects.get(e.name.name()).copied()),
                 xs: states_f32(&r.xs),
             })
             .collect());
@@ -409,19 +421,47 @@ fn std_cover(long: &mut [f64], window: &[(f64, f64)], coverage: f64) -> (f64, f6
 /// Runs `xs` through a fresh estimator and returns the outputs after
 /// `WINDOW` and after all of `xs`.
 fn checkpoints(m: &Model<'_>, xs: &[[f32; 2]]) -> Result<(StepOutput, StepOutput)> {
+    let (a, b, _) = checkpoints_with_extremes(m, xs)?;
+    Ok((a, b))
+}
+
+/// The largest mean normalised innovation and departure of the rate
+/// ratio from 1 over the updates from the [`WINDOW`]-th on (where the
+/// device applies their checks; `None` where never measured).
+#[derive(Debug, Clone, Copy, Default)]
+struct Extremes {
+    nis: Option<f32>,
+    rate_off: Option<f32>,
+}
+
+/// [`checkpoints`], and the [`Extremes`] over the run.
+fn checkpoints_with_extremes(
+    m: &Model<'_>,
+    xs: &[[f32; 2]],
+) -> Result<(StepOutput, StepOutput, Extremes)> {
     let mut est = Estimator::new(m).at_trained_gravity();
     let mut at_window = None;
     let mut last = None;
+    let mut ext = Extremes::default();
+    let most = |a: Option<f32>, b: Option<f32>| match (a, b) {
+        (Some(x), Some(y)) => Some(x.max(y)),
+        (x, y) => x.or(y),
+    };
     for (n, x) in xs.iter().enumerate() {
         let out = est.step(x).map_err(|e| anyhow::anyhow!("{e}"))?;
         if n + 1 == WINDOW {
             at_window = Some(out.clone());
+        }
+        if n + 1 >= WINDOW {
+            ext.nis = most(ext.nis, out.nis);
+            ext.rate_off = most(ext.rate_off, out.rate_ratio.map(|r| (r - 1.0).abs()));
         }
         last = Some(out);
     }
     Ok((
         at_window.context("rollout shorter than the window")?,
         last.context("empty rollout")?,
+        ext,
     ))
 }
 
@@ -528,7 +568,7 @@ pub fn calibrate(
     let effect_spec = base.body.params[1];
     let (mut e_long, mut e_win) = (vec![], vec![]);
     for r in &cal {
-        let (a, b) = checkpoints(&m, &r.xs)?;
+        let (a, b, ext) = checkpoints_with_extremes(&m, &r.xs)?;
         let truth = spec.coordinate(r.length as f32);
         if let (true, Some(c)) = (effect_spec.declared, r.effect) {
             let t = effect_spec.coordinate(c as f32);
@@ -546,13 +586,12 @@ pub fn calibrate(
         // Not measured (no two turning points yet): passes.
         let u = |o: &StepOutput| f64::from(o.unevenness.unwrap_or(0.0));
         uneven.push(u(&a).max(u(&b)));
-        if let Some(v) = a.nis.into_iter().chain(b.nis).reduce(f32::max) {
+        // The largest over the run from the window on: what the device's
+        // checks see.
+        if let Some(v) = ext.nis {
             nis.push(f64::from(v));
         }
-        let off = |o: &StepOutput| o.rate_ratio.map(|r| (r - 1.0).abs());
-        rate.push(f64::from(
-            off(&a).into_iter().chain(off(&b)).fold(0.0, f32::max),
-        ));
+        rate.push(f64::from(ext.rate_off.unwrap_or(0.0)));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
         err_long.push(f64::from((b.coordinate[0] - truth).abs()));
         win.push((
@@ -580,6 +619,10 @@ pub fn calibrate(
         }
         None => (lo, hi),
     };
+    anyhow::ensure!(
+        lo <= hi,
+        "calibration: the held-out estimates' range [{lo}, {hi}] lies outside the trained lengths widened by the margin: the model does not read its own range"
+    );
     let (std_floor, std_scale) = std_cover(&mut err_long, &win, cfg.coverage);
     // The effect's, where measured (else as the filter says).
     let (effect_floor, effect_scale) = if e_long.is_empty() {

@@ -97,7 +97,8 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
 /// one every tens of milliseconds at the turning points, where a window
 /// of a fixed number of samples would span half a swing and cut its
 /// amplitude. On a uniform grid this is [`differentiate`] with
-/// `half = m h`.
+/// `half = m h` (at the ends up to a sample the rounding of `2 half` may
+/// leave out).
 pub fn differentiate_uneven(t: &[f64], theta: &[f64], half: f64) -> (Vec<f64>, Vec<f64>) {
     let n = theta.len().min(t.len());
     let mut smooth = Vec::with_capacity(n);
