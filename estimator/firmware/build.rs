@@ -1,27 +1,23 @@
 //! Puts `memory.x` on the linker's path and turns `rollouts.bin` (the
-//! measurements, as `f32`) into a Rust table.
+//! protocol's measurements, as `f32`) and `rig-rollouts.bin` (a string's,
+//! for the rig blob) into Rust tables.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::{env, fs};
 
-fn main() {
-    let out = PathBuf::from(env::var_os("OUT_DIR").expect("OUT_DIR"));
-    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
-    println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rerun-if-changed=memory.x");
-    println!("cargo:rerun-if-changed=rollouts.bin");
-
-    // rollouts.bin (written by host-tests' firmware test from the
-    // protocol's test set): little-endian u32 count, u32 steps, then per
-    // rollout a u32 id and `steps` pairs of f32 (theta, theta_dot).
-    let bytes = fs::read("rollouts.bin").expect("read rollouts.bin");
+/// A `.bin` (written by host-tests' firmware test): little-endian u32
+/// count, u32 steps, then per rollout a u32 id and `steps` pairs of f32
+/// (theta, theta_dot).
+fn read(path: &str) -> BTreeMap<u32, Vec<(f32, f32)>> {
+    println!("cargo:rerun-if-changed={path}");
+    let bytes = fs::read(path).unwrap_or_else(|e| panic!("read {path}: {e}"));
     let mut words = bytes.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]);
-    let mut next = || words.next().expect("rollouts.bin: truncated");
+    let mut next = || words.next().unwrap_or_else(|| panic!("{path}: truncated"));
     let count = u32::from_le_bytes(next());
     let steps = u32::from_le_bytes(next()) as usize;
-    let mut rollouts: BTreeMap<u32, Vec<(f32, f32)>> = BTreeMap::new();
+    let mut rollouts = BTreeMap::new();
     for _ in 0..count {
         let id = u32::from_le_bytes(next());
         let xs = (0..steps)
@@ -32,17 +28,18 @@ fn main() {
     let steps = rollouts.values().next().map_or(0, Vec::len);
     assert!(
         steps > 0 && rollouts.values().all(|r| r.len() == steps),
-        "rollouts.bin: no rollouts"
+        "{path}: no rollouts"
     );
-    let mut src = String::new();
+    rollouts
+}
+
+/// `pub static {name}: [(u32, [[f32; 2]; {steps}]); n]` of the rollouts.
+fn table(src: &mut String, name: &str, path: &str) {
+    let rollouts = read(path);
+    let steps = rollouts.values().next().map_or(0, Vec::len);
     writeln!(
         src,
-        "/// Measurements per rollout.\npub const STEPS: usize = {steps};"
-    )
-    .unwrap();
-    writeln!(
-        src,
-        "/// `(rollout id, raw measurements)` from rollouts.bin.\npub static ROLLOUTS: [(u32, [[f32; 2]; STEPS]); {}] = [",
+        "/// `(rollout id, raw measurements)` from {path}.\npub static {name}: [(u32, [[f32; 2]; {steps}]); {}] = [",
         rollouts.len()
     )
     .unwrap();
@@ -55,5 +52,15 @@ fn main() {
         writeln!(src, "]),").unwrap();
     }
     writeln!(src, "];").unwrap();
+}
+
+fn main() {
+    let out = PathBuf::from(env::var_os("OUT_DIR").expect("OUT_DIR"));
+    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
+    println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rerun-if-changed=memory.x");
+    let mut src = String::new();
+    table(&mut src, "ROLLOUTS", "rollouts.bin");
+    table(&mut src, "RIG_ROLLOUTS", "rig-rollouts.bin");
     fs::write(out.join("rollouts.rs"), src).expect("write rollouts.rs");
 }

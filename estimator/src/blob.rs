@@ -99,7 +99,9 @@
 use serde::{Deserialize, Serialize};
 
 pub use crate::rig::Rig;
-use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_DIM, State};
+use crate::{
+    AUG_DIM, Error, HIDDEN_DIM, HIDDEN_WIDTHS, INPUT_DIM, LATENT_DIM, PARAM_DIM, STATE_DIM, State,
+};
 
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
@@ -138,6 +140,15 @@ impl Header {
         hidden_dim: HIDDEN_DIM as u16,
         input_dim: INPUT_DIM as u16,
     };
+
+    /// The current header of a blob whose hidden layers are `hidden`
+    /// wide (one of [`HIDDEN_WIDTHS`](crate::HIDDEN_WIDTHS)).
+    pub const fn with_hidden(hidden: u16) -> Header {
+        Header {
+            hidden_dim: hidden,
+            ..Header::CURRENT
+        }
+    }
 }
 
 /// A borrowed run of little-endian `f32` values.
@@ -150,16 +161,19 @@ impl<'a> F32s<'a> {
     pub fn len(&self) -> usize {
         self.0.len() / 4
     }
+
     /// True when there are no values.
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
+
     /// The `i`-th value, or `None` past the end.
     #[inline]
     pub fn get(&self, i: usize) -> Option<f32> {
         let b = self.0.get(i * 4..)?.first_chunk::<4>()?;
         Some(f32::from_le_bytes(*b))
     }
+
     /// All values in order.
     pub fn iter(&self) -> impl Iterator<Item = f32> + 'a {
         // `chunks_exact(4)` yields 4-byte chunks only; the fallback is
@@ -190,21 +204,6 @@ pub enum Activation {
     Tanh,
 }
 
-/// `(d_in, d_out)` of the encoder's layers: STATE -> HIDDEN -> HIDDEN ->
-/// LATENT.
-pub const ENCODER_SHAPES: [(usize, usize); N_LAYERS] = [
-    (STATE_DIM, HIDDEN_DIM),
-    (HIDDEN_DIM, HIDDEN_DIM),
-    (HIDDEN_DIM, LATENT_DIM),
-];
-/// `(d_in, d_out)` of the decoder's layers: LATENT -> HIDDEN -> HIDDEN ->
-/// STATE.
-pub const DECODER_SHAPES: [(usize, usize); N_LAYERS] = [
-    (LATENT_DIM, HIDDEN_DIM),
-    (HIDDEN_DIM, HIDDEN_DIM),
-    (HIDDEN_DIM, STATE_DIM),
-];
-
 /// Which MLP a layer belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Net {
@@ -224,13 +223,102 @@ const fn mlp_len(shapes: &[(usize, usize); N_LAYERS]) -> usize {
     layer_len(l0) + layer_len(l1) + layer_len(l2)
 }
 
-/// Offset of `F` in the arena, in `f32`s.
-pub const F_AT: usize = mlp_len(&ENCODER_SHAPES) + mlp_len(&DECODER_SHAPES);
-/// Offset of `B` in the arena, in `f32`s.
-pub const B_AT: usize = F_AT + AUG_DIM * AUG_DIM;
-/// Offset of the gain schedule in the arena, in `f32`s: the length of
-/// the arena without one.
-pub const SCHEDULE_AT: usize = B_AT + AUG_DIM * INPUT_DIM;
+/// Where everything lies in a weight arena whose MLPs have hidden layers
+/// `hidden` wide (the header's `hidden_dim`, one of
+/// [`HIDDEN_WIDTHS`](crate::HIDDEN_WIDTHS)). Offsets are in `f32`s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// Width of the encoder's and the decoder's hidden layers.
+    pub hidden: usize,
+}
+
+impl Layout {
+    /// The widest, [`HIDDEN_DIM`]: the protocol's blob's.
+    pub const WIDEST: Layout = Layout { hidden: HIDDEN_DIM };
+
+    /// The layout of a blob with this header; `None` for a hidden width
+    /// this build does not run.
+    pub const fn of(header: &Header) -> Option<Layout> {
+        let hidden = header.hidden_dim as usize;
+        let [narrow, wide] = HIDDEN_WIDTHS;
+        if hidden == narrow || hidden == wide {
+            Some(Layout { hidden })
+        } else {
+            None
+        }
+    }
+
+    /// `(d_in, d_out)` of the encoder's layers: STATE -> HIDDEN -> HIDDEN
+    /// -> LATENT.
+    pub const fn encoder_shapes(self) -> [(usize, usize); N_LAYERS] {
+        let h = self.hidden;
+        [(STATE_DIM, h), (h, h), (h, LATENT_DIM)]
+    }
+
+    /// `(d_in, d_out)` of the decoder's layers: LATENT -> HIDDEN -> HIDDEN
+    /// -> STATE.
+    pub const fn decoder_shapes(self) -> [(usize, usize); N_LAYERS] {
+        let h = self.hidden;
+        [(LATENT_DIM, h), (h, h), (h, STATE_DIM)]
+    }
+
+    /// Where layer `k` of `net` lies: `(weight offset, d_in, d_out)`; its
+    /// bias follows the weight at `offset + d_in * d_out`. `None` for
+    /// `k >= N_LAYERS`.
+    pub const fn layer_span(self, net: Net, k: usize) -> Option<(usize, usize, usize)> {
+        let (shapes, at) = match net {
+            Net::Encoder => (self.encoder_shapes(), 0),
+            Net::Decoder => (self.decoder_shapes(), mlp_len(&self.encoder_shapes())),
+        };
+        let [l0, l1, l2] = shapes;
+        match k {
+            0 => Some((at, l0.0, l0.1)),
+            1 => Some((at + layer_len(l0), l1.0, l1.1)),
+            2 => Some((at + layer_len(l0) + layer_len(l1), l2.0, l2.1)),
+            _ => None,
+        }
+    }
+
+    /// Offset of `F` (or of the bilinear matrices): after both MLPs.
+    pub const fn f_at(self) -> usize {
+        mlp_len(&self.encoder_shapes()) + mlp_len(&self.decoder_shapes())
+    }
+
+    /// Offset of `B`.
+    pub const fn b_at(self) -> usize {
+        self.f_at() + AUG_DIM * AUG_DIM
+    }
+
+    /// Offset of the gain schedule: the length of a linear arena without
+    /// one.
+    pub const fn schedule_at(self) -> usize {
+        self.b_at() + AUG_DIM * INPUT_DIM
+    }
+
+    /// Length of a linear arena with a schedule of `steps` updates: the
+    /// weights, `steps` scheduled updates and, when `steps > 0`, the tail.
+    pub const fn arena_len(self, steps: u16) -> usize {
+        let steps = steps as usize;
+        let tail = if steps > 0 { TAIL_LEN } else { 0 };
+        self.schedule_at() + steps * SCHEDULE_STEP_LEN + tail
+    }
+
+    /// Length of a bilinear arena.
+    pub const fn bilinear_arena_len(self) -> usize {
+        self.f_at() + BILINEAR_BLOCKS * BILINEAR_BLOCK_LEN
+    }
+}
+
+/// `(d_in, d_out)` of the encoder's layers in the widest layout.
+pub const ENCODER_SHAPES: [(usize, usize); N_LAYERS] = Layout::WIDEST.encoder_shapes();
+/// `(d_in, d_out)` of the decoder's layers in the widest layout.
+pub const DECODER_SHAPES: [(usize, usize); N_LAYERS] = Layout::WIDEST.decoder_shapes();
+/// Offset of `F` in the widest layout's arena, in `f32`s.
+pub const F_AT: usize = Layout::WIDEST.f_at();
+/// Offset of `B` in the widest layout's arena, in `f32`s.
+pub const B_AT: usize = Layout::WIDEST.b_at();
+/// Offset of the gain schedule in the widest layout's arena, in `f32`s.
+pub const SCHEDULE_AT: usize = Layout::WIDEST.schedule_at();
 /// Values of one scheduled update: `K^T` then the parameters' standard
 /// deviations.
 pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
@@ -239,20 +327,18 @@ pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
 pub const TAIL_LEN: usize =
     2 * LATENT_DIM * LATENT_DIM + PARAM_DIM * LATENT_DIM + PARAM_DIM * PARAM_DIM;
 
-/// Length of the arena with a schedule of `steps` updates, in `f32`s: the
-/// weights, `steps` scheduled updates and, when `steps > 0`, the tail.
+/// Length of the widest layout's linear arena with a schedule of `steps`
+/// updates, in `f32`s ([`Layout::arena_len`]).
 pub const fn arena_len(steps: u16) -> usize {
-    let steps = steps as usize;
-    let tail = if steps > 0 { TAIL_LEN } else { 0 };
-    SCHEDULE_AT + steps * SCHEDULE_STEP_LEN + tail
+    Layout::WIDEST.arena_len(steps)
 }
 
 /// Matrices of a bilinear arena: `F_0`, `F_1`, `F_2`, `F_11`.
 pub const BILINEAR_BLOCKS: usize = 4;
 /// Values of one bilinear matrix.
 pub const BILINEAR_BLOCK_LEN: usize = LATENT_DIM * LATENT_DIM;
-/// Length of a bilinear arena, in `f32`s.
-pub const BILINEAR_ARENA_LEN: usize = F_AT + BILINEAR_BLOCKS * BILINEAR_BLOCK_LEN;
+/// Length of the widest layout's bilinear arena, in `f32`s.
+pub const BILINEAR_ARENA_LEN: usize = Layout::WIDEST.bilinear_arena_len();
 
 /// Which Koopman model a blob holds: how `[y; p]` advances.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
@@ -268,21 +354,10 @@ pub enum Family {
     Bilinear,
 }
 
-/// Where layer `k` of `net` lies in the arena, in `f32`s:
-/// `(weight offset, d_in, d_out)`; its bias follows the weight at
-/// `offset + d_in * d_out`. `None` for `k >= N_LAYERS`.
+/// Where layer `k` of `net` lies in the widest layout's arena
+/// ([`Layout::layer_span`]).
 pub const fn layer_span(net: Net, k: usize) -> Option<(usize, usize, usize)> {
-    let (shapes, at) = match net {
-        Net::Encoder => (&ENCODER_SHAPES, 0),
-        Net::Decoder => (&DECODER_SHAPES, mlp_len(&ENCODER_SHAPES)),
-    };
-    let [l0, l1, l2] = *shapes;
-    match k {
-        0 => Some((at, l0.0, l0.1)),
-        1 => Some((at + layer_len(l0), l1.0, l1.1)),
-        2 => Some((at + layer_len(l0) + layer_len(l1), l2.0, l2.1)),
-        _ => None,
-    }
+    Layout::WIDEST.layer_span(net, k)
 }
 
 /// Bytes kept at an address aligned to 4, so that a blob compiled into
@@ -685,57 +760,6 @@ impl<'a> Body<'a> {
     pub fn span(&self, at: usize, len: usize) -> F32s<'a> {
         F32s(self.weights.0.get(at * 4..(at + len) * 4).unwrap_or(&[]))
     }
-    /// `F`, row-major (empty for a bilinear blob).
-    pub fn f(&self) -> F32s<'a> {
-        match self.family {
-            Family::Linear => self.span(F_AT, AUG_DIM * AUG_DIM),
-            Family::Bilinear => F32s(&[]),
-        }
-    }
-    /// Bilinear matrix `k` (`F_0`, `F_1`, `F_2`, `F_11` for `k = 0..4`),
-    /// row-major; empty for a linear blob or `k` out of range.
-    pub fn bilinear(&self, k: usize) -> F32s<'a> {
-        match self.family {
-            Family::Bilinear if k < BILINEAR_BLOCKS => {
-                self.span(F_AT + k * BILINEAR_BLOCK_LEN, BILINEAR_BLOCK_LEN)
-            }
-            _ => F32s(&[]),
-        }
-    }
-    /// `B`, row-major (empty for a bilinear blob).
-    pub fn b(&self) -> F32s<'a> {
-        match self.family {
-            Family::Linear => self.span(B_AT, AUG_DIM * INPUT_DIM),
-            Family::Bilinear => F32s(&[]),
-        }
-    }
-    /// Scheduled update `n` (`1..=schedule_steps`): `K_n^T` ([`LATENT_DIM`]
-    /// rows of [`AUG_DIM`]) and the parameters' standard deviations after
-    /// it. Empty runs for an `n` outside the schedule.
-    pub fn schedule_step(&self, n: usize) -> (F32s<'a>, F32s<'a>) {
-        let steps = usize::from(self.filter.schedule_steps);
-        if n == 0 || n > steps {
-            return (F32s(&[]), F32s(&[]));
-        }
-        let at = SCHEDULE_AT + (n - 1) * SCHEDULE_STEP_LEN;
-        let gain = LATENT_DIM * AUG_DIM;
-        (self.span(at, gain), self.span(at + gain, PARAM_DIM))
-    }
-    /// The schedule's tail (see the module docs), empty without a schedule.
-    pub fn schedule_tail(&self) -> F32s<'a> {
-        let steps = usize::from(self.filter.schedule_steps);
-        if steps == 0 {
-            return F32s(&[]);
-        }
-        self.span(SCHEDULE_AT + steps * SCHEDULE_STEP_LEN, TAIL_LEN)
-    }
-    /// Layer `k` of `net`: its input-major weight and its bias.
-    pub fn layer(&self, net: Net, k: usize) -> (F32s<'a>, F32s<'a>) {
-        match layer_span(net, k) {
-            Some((at, i, o)) => (self.span(at, i * o), self.span(at + i * o, o)),
-            None => (F32s(&[]), F32s(&[])),
-        }
-    }
 }
 
 /// A whole blob.
@@ -752,6 +776,77 @@ pub struct Blob<'a> {
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
 impl<'a> Blob<'a> {
+    /// The layout of the arena (its hidden width from the header; the
+    /// widest for a width this build does not run, which
+    /// [`Blob::from_bytes`] refuses).
+    pub fn layout(&self) -> Layout {
+        Layout::of(&self.header).unwrap_or(Layout::WIDEST)
+    }
+
+    /// `F`, row-major (empty for a bilinear blob).
+    pub fn f(&self) -> F32s<'a> {
+        match self.body.family {
+            Family::Linear => self.body.span(self.layout().f_at(), AUG_DIM * AUG_DIM),
+            Family::Bilinear => F32s(&[]),
+        }
+    }
+
+    /// Bilinear matrix `k` (`F_0`, `F_1`, `F_2`, `F_11` for `k = 0..4`),
+    /// row-major; empty for a linear blob or `k` out of range.
+    pub fn bilinear(&self, k: usize) -> F32s<'a> {
+        match self.body.family {
+            Family::Bilinear if k < BILINEAR_BLOCKS => self.body.span(
+                self.layout().f_at() + k * BILINEAR_BLOCK_LEN,
+                BILINEAR_BLOCK_LEN,
+            ),
+            _ => F32s(&[]),
+        }
+    }
+
+    /// `B`, row-major (empty for a bilinear blob).
+    pub fn b(&self) -> F32s<'a> {
+        match self.body.family {
+            Family::Linear => self.body.span(self.layout().b_at(), AUG_DIM * INPUT_DIM),
+            Family::Bilinear => F32s(&[]),
+        }
+    }
+
+    /// Scheduled update `n` (`1..=schedule_steps`): `K_n^T` ([`LATENT_DIM`]
+    /// rows of [`AUG_DIM`]) and the parameters' standard deviations after
+    /// it. Empty runs for an `n` outside the schedule.
+    pub fn schedule_step(&self, n: usize) -> (F32s<'a>, F32s<'a>) {
+        let steps = usize::from(self.body.filter.schedule_steps);
+        if n == 0 || n > steps {
+            return (F32s(&[]), F32s(&[]));
+        }
+        let at = self.layout().schedule_at() + (n - 1) * SCHEDULE_STEP_LEN;
+        let gain = LATENT_DIM * AUG_DIM;
+        (
+            self.body.span(at, gain),
+            self.body.span(at + gain, PARAM_DIM),
+        )
+    }
+
+    /// The schedule's tail (see the module docs), empty without a schedule.
+    pub fn schedule_tail(&self) -> F32s<'a> {
+        let steps = usize::from(self.body.filter.schedule_steps);
+        if steps == 0 {
+            return F32s(&[]);
+        }
+        self.body.span(
+            self.layout().schedule_at() + steps * SCHEDULE_STEP_LEN,
+            TAIL_LEN,
+        )
+    }
+
+    /// Layer `k` of `net`: its input-major weight and its bias.
+    pub fn layer(&self, net: Net, k: usize) -> (F32s<'a>, F32s<'a>) {
+        match self.layout().layer_span(net, k) {
+            Some((at, i, o)) => (self.body.span(at, i * o), self.body.span(at + i * o, o)),
+            None => (F32s(&[]), F32s(&[])),
+        }
+    }
+
     /// Reads and validates a blob, borrowing its weights from `bytes`.
     ///
     /// Checks, in order: header (magic, version, dimensions), body decoding
@@ -765,7 +860,7 @@ impl<'a> Blob<'a> {
         if header.version != FORMAT_VERSION {
             return Err(Error::BlobBadVersion);
         }
-        if header != Header::CURRENT {
+        if header != Header::with_hidden(header.hidden_dim) || Layout::of(&header).is_none() {
             return Err(Error::BlobShapeMismatch);
         }
         let (blob, rest) = postcard::take_from_bytes_crc32::<Blob<'a>>(bytes, CRC.digest())
@@ -815,16 +910,16 @@ impl<'a> Blob<'a> {
             return Err(Error::BlobMisaligned);
         }
         let len = match b.family {
-            Family::Linear => arena_len(b.filter.schedule_steps),
+            Family::Linear => self.layout().arena_len(b.filter.schedule_steps),
             // The extended filter's gains depend on the state: no schedule.
-            Family::Bilinear if b.filter.schedule_steps == 0 => BILINEAR_ARENA_LEN,
+            Family::Bilinear if b.filter.schedule_steps == 0 => self.layout().bilinear_arena_len(),
             Family::Bilinear => return Err(Error::BlobShapeMismatch),
         };
         b.weights.check(len)?;
         // The filter treats the parameters as static: their rows of F must
         // be the identity.
         let param_rows_identity =
-            b.f()
+            self.f()
                 .iter()
                 .enumerate()
                 .skip(LATENT_DIM * AUG_DIM)
@@ -845,8 +940,8 @@ impl<'a> Blob<'a> {
             return Err(Error::BlobParamsNotStatic);
         }
         let stds_ok = (1..=usize::from(b.filter.schedule_steps))
-            .all(|n| b.schedule_step(n).1.iter().all(|v| v >= 0.0));
-        let tail = b.schedule_tail();
+            .all(|n| self.schedule_step(n).1.iter().all(|v| v >= 0.0));
+        let tail = self.schedule_tail();
         let sym = |at: usize, n: usize, diag_sign: bool| {
             let v = |i: usize, j: usize| tail.get(at + i * n + j);
             (0..n).all(|i| {

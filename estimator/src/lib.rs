@@ -41,8 +41,13 @@ pub const LATENT_DIM: usize = 16;
 pub const PARAM_DIM: usize = 2;
 /// Filter state size, `[y; p]`.
 pub const AUG_DIM: usize = LATENT_DIM + PARAM_DIM;
-/// Hidden width of the encoder and decoder.
+/// The widest hidden layer of the encoder and decoder (the protocol's
+/// blob's).
 pub const HIDDEN_DIM: usize = 128;
+/// The hidden widths a blob may have (its header's `hidden_dim`): the
+/// estimator runs each with sizes fixed at compile time. A narrower
+/// encoder costs a step less (the rig blob's 64).
+pub const HIDDEN_WIDTHS: [usize; 2] = [64, HIDDEN_DIM];
 /// Control inputs (torque).
 pub const INPUT_DIM: usize = 1;
 /// The protocol's estimation window: the filter sees `x_0 .. x_63`, and

@@ -2,21 +2,21 @@
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
 use crate::blob::{
-    Activation, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F_AT, Family, Net, SCHEDULE_AT,
-    SCHEDULE_STEP_LEN, layer_span,
+    Activation, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Family, Layout, Net, SCHEDULE_STEP_LEN,
 };
-use crate::{AUG_DIM, Aug, Error, HIDDEN_DIM, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State};
+use crate::{
+    AUG_DIM, Aug, Error, HIDDEN_DIM, HIDDEN_WIDTHS, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State,
+};
 
 #[cfg(target_endian = "big")]
 compile_error!(
     "the blob's weights are little-endian f32 read in place: little-endian targets only"
 );
 
-/// The latent rows of `F`, `C = [A B]` (row-major), decoded once: the
-/// filter reads them every step. The parameter rows are the identity
+/// The latent rows of `F`, `C = [A B]`, stored column by column: `C^T`
+/// (AUG rows of LATENT), decoded once. The filter reads them every step,
+/// summing scaled columns. The parameter rows of `F` are the identity
 /// (checked when the blob is read).
-pub type KoopmanRows = [[f32; AUG_DIM]; LATENT_DIM];
-/// `C^T`, the same numbers column by column (AUG rows of LATENT).
 pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
 
 /// Hidden outputs computed per block by [`dense`]: as many accumulators as
@@ -28,8 +28,15 @@ pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
 const HIDDEN_BLOCK: usize = 32;
 #[cfg(not(target_arch = "x86_64"))]
 const HIDDEN_BLOCK: usize = 16;
-// `dense` needs the block to divide the hidden width.
-const _: () = assert!(HIDDEN_DIM.is_multiple_of(HIDDEN_BLOCK));
+/// The narrower hidden width a blob may have ([`HIDDEN_WIDTHS`]).
+const NARROW: usize = 64;
+// The widths [`Nets`] runs are the crate's, and `dense` needs the block to
+// divide each.
+const _: () = {
+    let [narrow, wide] = HIDDEN_WIDTHS;
+    assert!(narrow == NARROW && wide == HIDDEN_DIM);
+    assert!(narrow.is_multiple_of(HIDDEN_BLOCK) && wide.is_multiple_of(HIDDEN_BLOCK));
+};
 
 /// One MLP, `I -> H -> H -> O`, its weights borrowed from the blob as
 /// typed arrays (input-major: `w[j]` is input `j`'s weights).
@@ -51,9 +58,10 @@ fn rows<const R: usize, const C: usize>(a: &[f32], at: usize) -> Result<&[[f32; 
 }
 
 impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
-    fn from_arena(a: &'a [f32], net: Net) -> Result<Self, Error> {
+    fn from_arena(a: &'a [f32], layout: Layout, net: Net) -> Result<Self, Error> {
         let at = |k| {
-            layer_span(net, k)
+            layout
+                .layer_span(net, k)
                 .map(|(at, i, o)| (at, at + i * o))
                 .ok_or(Error::BlobShapeMismatch)
         };
@@ -110,17 +118,51 @@ impl<'a> Tail<'a> {
     }
 }
 
-/// `C^T` of the latent rows `c`.
-pub(crate) fn columns(c: &KoopmanRows) -> KoopmanColumns {
+/// `C^T` of a linear blob's `F` (row-major, [`AUG_DIM`] square, at `at`
+/// of the arena): its latent rows, column by column.
+fn columns(a: &[f32], at: usize) -> Result<KoopmanColumns, Error> {
+    let f = rows::<LATENT_DIM, AUG_DIM>(a, at)?;
     let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
-    for (i, row) in c.iter().enumerate() {
+    for (i, row) in f.iter().enumerate() {
         for (col, v) in ct.iter_mut().zip(row) {
             if let Some(d) = col.get_mut(i) {
                 *d = *v;
             }
         }
     }
-    ct
+    Ok(ct)
+}
+
+/// The encoder and the decoder at one of the [`HIDDEN_WIDTHS`], each
+/// with its sizes fixed at compile time.
+#[derive(Debug, Clone, Copy)]
+enum Nets<'a> {
+    /// 64-wide hidden layers.
+    Narrow(
+        Mlp<'a, STATE_DIM, NARROW, LATENT_DIM>,
+        Mlp<'a, LATENT_DIM, NARROW, STATE_DIM>,
+    ),
+    /// [`HIDDEN_DIM`]-wide hidden layers.
+    Wide(
+        Mlp<'a, STATE_DIM, HIDDEN_DIM, LATENT_DIM>,
+        Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
+    ),
+}
+
+impl<'a> Nets<'a> {
+    fn from_arena(a: &'a [f32], layout: Layout) -> Result<Self, Error> {
+        match layout.hidden {
+            NARROW => Ok(Nets::Narrow(
+                Mlp::from_arena(a, layout, Net::Encoder)?,
+                Mlp::from_arena(a, layout, Net::Decoder)?,
+            )),
+            HIDDEN_DIM => Ok(Nets::Wide(
+                Mlp::from_arena(a, layout, Net::Encoder)?,
+                Mlp::from_arena(a, layout, Net::Decoder)?,
+            )),
+            _ => Err(Error::BlobShapeMismatch),
+        }
+    }
 }
 
 /// A [`LATENT_DIM`] square matrix, row-major, read in place.
@@ -128,18 +170,16 @@ pub type LatentRows = [[f32; LATENT_DIM]; LATENT_DIM];
 
 /// A validated model whose weights stay in the bytes it was read from.
 ///
-/// Only the latent rows of `F` are copied out of the blob, by rows and by
-/// columns ([`KoopmanRows`], [`KoopmanColumns`], 1152 bytes each), as
-/// `f32` the filter can load directly; the MLP weights (the bulk of the
-/// blob) are read in place as `&[f32]`.
+/// Only the latent rows of a linear `F` are copied out of the blob, by
+/// columns ([`KoopmanColumns`], 1152 bytes), as `f32` the filter can load
+/// directly; the MLP weights (the bulk of the blob) and the bilinear
+/// matrices are read in place as `&[f32]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Model<'a> {
     blob: Blob<'a>,
     arena: &'a [f32],
     tail: Option<Tail<'a>>,
-    encoder: Mlp<'a, STATE_DIM, HIDDEN_DIM, LATENT_DIM>,
-    decoder: Mlp<'a, LATENT_DIM, HIDDEN_DIM, STATE_DIM>,
-    c: KoopmanRows,
+    nets: Nets<'a>,
     ct: KoopmanColumns,
     /// `F_0, F_1, F_2, F_11` of a bilinear blob, in place.
     bilinear: Option<[&'a LatentRows; BILINEAR_BLOCKS]>,
@@ -247,26 +287,26 @@ impl<'a> Model<'a> {
         let blob = Blob::from_bytes(bytes)?;
         let arena: &'a [f32] =
             bytemuck::try_cast_slice(blob.body.weights.0).map_err(|_| Error::BlobMisaligned)?;
-        let encoder = Mlp::from_arena(arena, Net::Encoder)?;
-        let decoder = Mlp::from_arena(arena, Net::Decoder)?;
+        let layout = blob.layout();
+        let nets = Nets::from_arena(arena, layout)?;
         let bilinear = match blob.body.family {
             Family::Linear => None,
             Family::Bilinear => {
-                let block =
-                    |k: usize| rows::<LATENT_DIM, LATENT_DIM>(arena, F_AT + k * BILINEAR_BLOCK_LEN);
+                let block = |k: usize| {
+                    rows::<LATENT_DIM, LATENT_DIM>(arena, layout.f_at() + k * BILINEAR_BLOCK_LEN)
+                };
                 Some([block(0)?, block(1)?, block(2)?, block(3)?])
             }
         };
-        let c: KoopmanRows = match bilinear {
-            None => *rows(arena, F_AT)?,
-            Some(_) => [[0.0; AUG_DIM]; LATENT_DIM],
+        let ct = match bilinear {
+            None => columns(arena, layout.f_at())?,
+            Some(_) => [[0.0; LATENT_DIM]; AUG_DIM],
         };
-        let ct = columns(&c);
         let steps = usize::from(blob.body.filter.schedule_steps);
         let tail = if steps > 0 {
             Some(Tail::from_arena(
                 arena,
-                SCHEDULE_AT + steps * SCHEDULE_STEP_LEN,
+                layout.schedule_at() + steps * SCHEDULE_STEP_LEN,
             )?)
         } else {
             None
@@ -275,9 +315,7 @@ impl<'a> Model<'a> {
             blob,
             arena,
             tail,
-            encoder,
-            decoder,
-            c,
+            nets,
             ct,
             bilinear,
         })
@@ -292,42 +330,40 @@ impl<'a> Model<'a> {
     /// The bilinear family's latent step at `g = [y; q]` and its Jacobian:
     /// `y' = F(q) y` with `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11`,
     /// and the latent rows of `d y' / d g`, `[F(q), (F_1 + 2 q_1 F_11) y,
-    /// F_2 y]`. `None` for a linear model (whose rows are
-    /// [`Model::koopman_rows`], the same at every `g`).
+    /// F_2 y]`, by columns (entry `[j][i]` is `d y'_i / d g_j`: the filter
+    /// sums along columns). `None` for a linear model (whose columns are
+    /// [`Model::koopman_columns`], the same at every `g`).
     #[inline(never)]
-    pub fn bilinear_step(&self, g: &Aug) -> Option<(Latent, KoopmanRows)> {
+    pub fn bilinear_step(&self, g: &Aug) -> Option<(Latent, KoopmanColumns)> {
         let [f0, f1, f2, f11] = self.bilinear?;
         let (y, q) = g.split_first_chunk::<LATENT_DIM>()?;
         let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
         let q11 = q1 * q1;
         let mut next = [0.0f32; LATENT_DIM];
-        let mut jac = [[0.0f32; AUG_DIM]; LATENT_DIM];
+        let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
         let dot = |row: &[f32; LATENT_DIM]| row.iter().zip(y).fold(0.0f32, |a, (w, v)| a + w * v);
-        for (i, (n, jrow)) in next.iter_mut().zip(jac.iter_mut()).enumerate() {
+        for (i, n) in next.iter_mut().enumerate() {
             let (r0, r1, r2, r11) = (f0.get(i)?, f1.get(i)?, f2.get(i)?, f11.get(i)?);
             let (u0, u1, u2, u11) = (dot(r0), dot(r1), dot(r2), dot(r11));
             *n = ((u0 + q1 * u1) + q2 * u2) + q11 * u11;
-            for (d, (((a, b), c), e)) in jrow.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
-                *d = ((a + q1 * b) + q2 * c) + q11 * e;
+            for (col, (((a, b), c), e)) in jac.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
+                if let Some(d) = col.get_mut(i) {
+                    *d = ((a + q1 * b) + q2 * c) + q11 * e;
+                }
             }
             let (dq1, dq2) = (u1 + 2.0 * q1 * u11, u2);
-            if let Some(d) = jrow.get_mut(LATENT_DIM) {
+            if let Some(d) = jac.get_mut(LATENT_DIM).and_then(|c| c.get_mut(i)) {
                 *d = dq1;
             }
-            if let Some(d) = jrow.get_mut(LATENT_DIM + 1) {
+            if let Some(d) = jac.get_mut(LATENT_DIM + 1).and_then(|c| c.get_mut(i)) {
                 *d = dq2;
             }
         }
         Some((next, jac))
     }
 
-    /// The latent rows of `F`.
-    #[inline]
-    pub fn koopman_rows(&self) -> &KoopmanRows {
-        &self.c
-    }
-
-    /// The latent rows of `F`, transposed.
+    /// The latent rows of `F`, transposed: `C^T`, column `i` of row `j`
+    /// is `F_ij`.
     #[inline]
     pub fn koopman_columns(&self) -> &KoopmanColumns {
         &self.ct
@@ -351,7 +387,7 @@ impl<'a> Model<'a> {
         if n == 0 || n > self.schedule_steps() {
             return None;
         }
-        let at = SCHEDULE_AT + (n as usize - 1) * SCHEDULE_STEP_LEN;
+        let at = self.blob.layout().schedule_at() + (n as usize - 1) * SCHEDULE_STEP_LEN;
         let kt = rows::<LATENT_DIM, AUG_DIM>(self.arena, at).ok()?;
         let std = rows::<1, PARAM_DIM>(self.arena, at + LATENT_DIM * AUG_DIM)
             .ok()
@@ -393,14 +429,20 @@ impl<'a> Model<'a> {
 
     /// Encoder on a normalised state.
     pub fn encode(&self, x_n: &State) -> Latent {
-        self.encoder
-            .forward::<LATENT_DIM>(x_n, self.blob.body.activation)
+        let act = self.blob.body.activation;
+        match &self.nets {
+            Nets::Narrow(e, _) => e.forward::<LATENT_DIM>(x_n, act),
+            Nets::Wide(e, _) => e.forward::<LATENT_DIM>(x_n, act),
+        }
     }
 
     /// Decoder to a normalised state.
     pub fn decode(&self, y: &Latent) -> State {
-        self.decoder
-            .forward::<STATE_DIM>(y, self.blob.body.activation)
+        let act = self.blob.body.activation;
+        match &self.nets {
+            Nets::Narrow(_, d) => d.forward::<STATE_DIM>(y, act),
+            Nets::Wide(_, d) => d.forward::<STATE_DIM>(y, act),
+        }
     }
 
     /// Element `(i, j)` of `F` (0 outside).
@@ -409,7 +451,7 @@ impl<'a> Model<'a> {
         if j >= AUG_DIM {
             return 0.0;
         }
-        self.blob.body.f().get(i * AUG_DIM + j).unwrap_or(0.0)
+        self.blob.f().get(i * AUG_DIM + j).unwrap_or(0.0)
     }
 
     /// One step of the augmented model, `p' = p`: for the linear family
@@ -425,8 +467,10 @@ impl<'a> Model<'a> {
             }
             return out;
         }
-        for (o, row) in out.iter_mut().zip(&self.c) {
-            *o = row.iter().zip(g).fold(0.0, |acc, (w, x)| acc + w * x);
+        for (i, o) in out.iter_mut().take(LATENT_DIM).enumerate() {
+            *o = self.ct.iter().zip(g).fold(0.0, |acc, (col, x)| {
+                acc + col.get(i).copied().unwrap_or(0.0) * x
+            });
         }
         out
     }

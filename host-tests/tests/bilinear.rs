@@ -12,7 +12,8 @@
 //! Algorithms*, 2nd ed., section 3.1).
 
 use estimator::blob::{
-    BILINEAR_ARENA_LEN, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F32s, Family, arena_len,
+    BILINEAR_ARENA_LEN, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F32s, Family, Layout, Net,
+    arena_len,
 };
 use estimator::{AUG_DIM, Aug, Error, Estimator, LATENT_DIM, Latent, Model, State};
 use host_tests::reference::{Dynamics, Reference};
@@ -73,9 +74,10 @@ fn the_synthetic_blob_reads_with_bounded_dynamics() {
     assert_eq!(m.schedule_steps(), 0);
     assert!(m.schedule_tail().is_none());
     assert_eq!(body.weights.len(), BILINEAR_ARENA_LEN);
-    assert!(body.f().is_empty() && body.b().is_empty());
-    assert!((0..BILINEAR_BLOCKS).all(|k| body.bilinear(k).len() == BILINEAR_BLOCK_LEN));
-    assert!(body.bilinear(BILINEAR_BLOCKS).is_empty());
+    let blob = m.blob();
+    assert!(blob.f().is_empty() && blob.b().is_empty());
+    assert!((0..BILINEAR_BLOCKS).all(|k| blob.bilinear(k).len() == BILINEAR_BLOCK_LEN));
+    assert!(blob.bilinear(BILINEAR_BLOCKS).is_empty());
     // The reference reads each matrix row-major: exactly the f64 matrices
     // the blob was made from, each entry rounded once to f32 (relative
     // error at most 2^-24).
@@ -155,6 +157,75 @@ fn a_bilinear_blob_that_does_not_fit_is_refused() {
         edited(|_, a| a[BILINEAR_ARENA_LEN - 1] = f32::NAN),
         Err(Error::BlobNonFinite)
     );
+    // A hidden width this build does not run, and a width it runs whose
+    // layout the arena does not have (the MLPs at 64 are shorter).
+    assert_eq!(
+        edited(|b, _| b.header.hidden_dim = 96),
+        Err(Error::BlobShapeMismatch)
+    );
+    assert_eq!(
+        edited(|b, _| b.header.hidden_dim = 64),
+        Err(Error::BlobShapeMismatch)
+    );
+}
+
+#[test]
+fn a_narrow_blob_reads_in_its_own_layout() {
+    // The 128-wide synthetic arena cut to a 64-wide one: each layer's
+    // weights and bias keep their first 64 inputs and outputs. It reads,
+    // and its encoder computes what the wide one computes with the other
+    // hidden units' weights zero (a ReLU unit that is always 0 adds
+    // nothing), so the layouts agree on where every value lies.
+    let bytes = blob();
+    let wide = Blob::from_bytes(bytes).unwrap();
+    let narrow_layout = Layout { hidden: 64 };
+    let mut narrow: Vec<f32> = Vec::new();
+    let mut zeroed: Vec<f32> = wide.body.weights.iter().collect();
+    for net in [Net::Encoder, Net::Decoder] {
+        for k in 0..3 {
+            let (at, d_in, d_out) = Layout::WIDEST.layer_span(net, k).unwrap();
+            let (_, n_in, n_out) = narrow_layout.layer_span(net, k).unwrap();
+            for i in 0..d_in {
+                for o in 0..d_out {
+                    let v = &mut zeroed[at + i * d_out + o];
+                    if i < n_in && o < n_out {
+                        narrow.push(*v);
+                    } else {
+                        *v = 0.0;
+                    }
+                }
+            }
+            for o in 0..d_out {
+                let v = &mut zeroed[at + d_in * d_out + o];
+                if o < n_out {
+                    narrow.push(*v);
+                } else {
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+    narrow.extend(wide.body.weights.iter().skip(Layout::WIDEST.f_at()));
+    assert_eq!(narrow.len(), narrow_layout.bilinear_arena_len());
+    let write = |hidden: u16, arena: &[f32]| {
+        let mut b = wide;
+        let le: Vec<u8> = arena.iter().flat_map(|v| v.to_le_bytes()).collect();
+        b.header.hidden_dim = hidden;
+        b.body.weights = F32s(&le);
+        trainer_core::calibrate::blob_bytes(&b).unwrap()
+    };
+    let (nb, wb) = (write(64, &narrow), write(128, &zeroed));
+    let (n, w) = (
+        Model::from_bytes(&nb).unwrap(),
+        Model::from_bytes(&wb).unwrap(),
+    );
+    assert_eq!(n.blob().layout(), narrow_layout);
+    for x in [[0.3f32, -0.2], [-1.0, 0.5], [0.0, 0.0]] {
+        // Bit for bit: the same products in the same order, the wide
+        // one's extra terms all +0.
+        assert_eq!(n.encode(&x), w.encode(&x));
+        assert_eq!(n.decode(&n.encode(&x)), w.decode(&w.encode(&x)));
+    }
 }
 
 #[test]
@@ -243,15 +314,15 @@ fn the_step_and_its_jacobian_match_the_f64_model_and_central_differences() {
                 };
                 let fd_bound = gamma(20) * (mp[i] + mm[i]) / (2.0 * f64::from(h));
                 let bound = 2.0 * (fd_bound + jbound) + f64::MIN_POSITIVE;
-                let err = (f64::from(jac[i][j]) - fd).abs();
+                let err = (f64::from(jac[j][i]) - fd).abs();
                 worst_fd = worst_fd.max(err / bound);
                 assert!(
                     err <= bound,
                     "J[{i}][{j}] at {q:?}: {} vs {fd} (bound {bound:e})",
-                    jac[i][j]
+                    jac[j][i]
                 );
                 // Against the f64 Jacobian: J's own rounding.
-                let err = (f64::from(jac[i][j]) - jac64[(i, j)]).abs();
+                let err = (f64::from(jac[j][i]) - jac64[(i, j)]).abs();
                 worst_ref = worst_ref.max(err / (2.0 * jbound + f64::MIN_POSITIVE));
                 assert!(
                     err <= 2.0 * jbound + f64::MIN_POSITIVE,

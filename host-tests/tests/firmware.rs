@@ -13,7 +13,8 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use estimator::{Estimator, Model, Trust};
-use host_tests::{root, shipped_blob};
+use host_tests::{rig_blob, root, shipped_blob};
+use trainer_core::bench::rig_window;
 use trainer_core::data::{states_f32, test_set};
 use trainer_core::protocol::{TEST_LENGTHS, TEST_PER_LENGTH};
 
@@ -62,19 +63,34 @@ fn encode(rollouts: &[(u32, Vec<[f32; 2]>)]) -> Vec<u8> {
     b
 }
 
+/// The rig blob's data in the firmware: `STEPS` measurements of the
+/// string of [`trainer_core::bench::rig_window`] at the blob's interval
+/// (rollout id 0).
+fn rig_rollouts() -> Vec<(u32, Vec<[f32; 2]>)> {
+    let bytes = rig_blob();
+    let model = Model::from_bytes(&bytes).unwrap();
+    let dt = f64::from(model.blob().body.dt);
+    vec![(0, rig_window(STEPS, dt))]
+}
+
 #[test]
-fn firmware_rollouts_are_the_protocol_test_set() {
-    let path = firmware_dir().join("rollouts.bin");
-    let want = encode(&firmware_rollouts());
-    if std::env::var_os("KOOPMAN_BLESS").is_some() {
-        std::fs::write(&path, &want).unwrap();
+fn firmware_rollouts_are_the_protocol_test_set_and_the_string() {
+    for (file, rollouts) in [
+        ("rollouts.bin", firmware_rollouts()),
+        ("rig-rollouts.bin", rig_rollouts()),
+    ] {
+        let path = firmware_dir().join(file);
+        let want = encode(&rollouts);
+        if std::env::var_os("KOOPMAN_BLESS").is_some() {
+            std::fs::write(&path, &want).unwrap();
+        }
+        let have = std::fs::read(&path).unwrap();
+        assert!(
+            have == want,
+            "{} differs from its data (KOOPMAN_BLESS=1 rewrites it)",
+            path.display()
+        );
     }
-    let have = std::fs::read(&path).unwrap();
-    assert!(
-        have == want,
-        "{} differs from the test set (KOOPMAN_BLESS=1 rewrites it)",
-        path.display()
-    );
 }
 
 /// Whether `tool` is here; where it is not, the test says so and is
@@ -173,8 +189,10 @@ fn firmware_in_qemu_matches_the_host() {
     );
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(lines.last().copied(), Some("done"), "{stdout}");
+    // Five test rollouts in two modes, then the string through the rig
+    // blob.
     assert!(
-        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 10,
+        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 10 + rig_rollouts().len(),
         "{stdout}"
     );
 
@@ -231,6 +249,30 @@ fn firmware_in_qemu_matches_the_host() {
             }
         }
     }
+    // Then the string, through the rig blob (the extended filter).
+    let rig_bytes = rig_blob();
+    let rig = Model::from_bytes(&rig_bytes).unwrap();
+    for (id, xs) in &rig_rollouts() {
+        let mut est = Estimator::new(&rig).at_trained_gravity();
+        for x in xs {
+            let h = est.step(x).unwrap();
+            let line = steps.next().expect("fewer step lines than measurements");
+            let w: Vec<&str> = line.split_whitespace().collect();
+            assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
+            assert_eq!(w[2], "rig", "{line}");
+            assert_eq!(w[3].parse::<u32>().unwrap(), h.t, "{line}");
+            let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
+            for (hex, hv) in w[4..10].iter().zip(host_vals) {
+                let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+                let d = (fv - hv).abs();
+                assert!(d <= tol(*hv), "{line}: firmware {fv} host {hv}");
+                worst = worst.max(d);
+                compared += 1;
+            }
+            assert_eq!(w[10], h.trust.word(), "{line}");
+            assert_eq!(w[11], reasons_token(&h.trust), "{line}");
+        }
+    }
     assert!(steps.next().is_none(), "more step lines than measurements");
     // The test rollouts at L = 0.5 and 1 are untrusted with reasons, so
     // the reasons were compared, not only the empty lists.
@@ -241,8 +283,10 @@ fn firmware_in_qemu_matches_the_host() {
     assert!(est_bytes <= 4096, "estimator state {est_bytes} B > 4 KiB");
     eprintln!("firmware: {compared} values equal the host's, largest difference {worst:e}");
     eprintln!("firmware: {sizes}");
-    let stack = lines.iter().find(|l| l.starts_with("stack used")).unwrap();
-    eprintln!("firmware: {stack}");
+    for key in ["stack used", "rig sizes", "rig stack used"] {
+        let l = lines.iter().find(|l| l.starts_with(key)).unwrap();
+        eprintln!("firmware: {l}");
+    }
     for l in lines.iter().filter(|l| l.starts_with("rollout")) {
         let per_step = |steps: &str, ticks: &str| {
             let n: u64 = field(l, steps).parse().unwrap();

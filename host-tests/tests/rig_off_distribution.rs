@@ -151,7 +151,8 @@ struct Row {
 }
 
 impl Row {
-    fn add(&mut self, truth: f64, first: &At, end: &At) {
+    /// Counts one recording; whether it was wrong and trusted.
+    fn add(&mut self, truth: f64, first: &At, end: &At) -> bool {
         let off = |a: &At| {
             let l = f64::from(a.length);
             // A NaN estimate is not within 5%: it counts as wrong.
@@ -165,9 +166,8 @@ impl Row {
         if off(first) || off(end) {
             self.wrong += 1;
         }
-        if (off(first) && trusted(first)) || (off(end) && trusted(end)) {
-            self.wrong_trusted += 1;
-        }
+        let wrong_trusted = (off(first) && trusted(first)) || (off(end) && trusted(end));
+        self.wrong_trusted += usize::from(wrong_trusted);
         self.flagged += usize::from(!trusted(end));
         if !off(end) {
             self.right += 1;
@@ -179,6 +179,7 @@ impl Row {
                 self.non_physical_trusted += 1;
             }
         }
+        wrong_trusted
     }
 }
 
@@ -195,7 +196,27 @@ fn rig_blob_off_distribution_suite() {
             shift(&mut c, &mut rng);
             let (first, end) =
                 labcheck::estimate(&m, &c.spec, &mut rng, c.dt, c.declared_g).unwrap();
-            row.add(c.truth, &first, &end);
+            if row.add(c.truth, &first, &end) {
+                let s = &c.spec;
+                eprintln!(
+                    "{name}: wrong and trusted: {:.3} m released at {:.3} rad, {:.0} s at {:.0} Hz, noise {:.4} rad, {:?}; after {} {:.4} {} {:?} (nis {:?}), at the end {:.4} {} {:?} (nis {:?})",
+                    c.truth,
+                    s.theta0,
+                    s.duration,
+                    s.rate,
+                    s.noise,
+                    s.effects,
+                    first.measured,
+                    first.length,
+                    first.trust,
+                    first.reasons,
+                    first.nis,
+                    end.length,
+                    end.trust,
+                    end.reasons,
+                    end.nis,
+                );
+            }
         }
         rows.push((name, row));
     }

@@ -22,6 +22,15 @@
 //! - `peer/step`: burn's encoder and the f64 filter together, the
 //!   straightforward host pipeline.
 //!
+//! - `rig/step`, `rig/encode`, `rig/filter`: the same for the rig blob
+//!   (`weights/rig.kkf`: the bilinear family, 64-wide encoder, the
+//!   extended filter's recursion at every update) over 64 steps of a
+//!   0.6 m string ([`trainer_core::bench::rig_window`]), each pass from a
+//!   filter that has run 64 steps already (so that every check applies);
+//!   its peers `rig_peer/burn_encode` (the same encoder through burn),
+//!   `rig_peer/f64_filter` (the f64 extended filter on nalgebra, the
+//!   reference) and `rig_peer/step` (the two together).
+//!
 //! `cargo bench -p trainer --bench step` prints each time and, at the
 //! end, the ratios of the peers to the estimator.
 
@@ -32,18 +41,109 @@ use burn::tensor::{Device, Tensor, TensorData};
 use criterion::{Criterion, Throughput};
 use estimator::{Estimator, Latent, Model, State};
 use trainer::learn::model::Mlp;
-use trainer_core::bench::window as bench_window;
+use trainer_core::bench::{rig_window, window as bench_window};
 use trainer_core::protocol::WINDOW;
 use trainer_core::reference::{Reference, ads};
 
-/// The shipped weights blob's bytes.
-fn shipped_blob() -> Vec<u8> {
-    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
+/// A shipped weights blob's bytes (`pendulum.kkf`, `rig.kkf`).
+fn shipped(name: &str) -> Vec<u8> {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../weights")
+        .join(name);
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
+/// The rig blob's group and its peers'.
+fn bench_rig(c: &mut Criterion) {
+    let bytes = shipped("rig.kkf");
+    let model = Model::from_bytes(&bytes).expect("shipped rig blob");
+    let dt = f64::from(model.blob().body.dt);
+    let all = rig_window(2 * WINDOW, dt);
+    let (first, xs) = all.split_at(WINDOW);
+    let zs: Vec<Latent> = xs
+        .iter()
+        .map(|x| model.encode(&model.normalise(x)))
+        .collect();
+    let mut warm = Estimator::new(&model).with_gravity(9.81).expect("g");
+    for x in first {
+        warm.step(x).expect("the rig blob reads its own string");
+    }
+
+    let mut g = c.benchmark_group("rig");
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(3));
+    g.throughput(Throughput::Elements(WINDOW as u64));
+    g.bench_function("step", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for x in xs {
+                black_box(e.step(black_box(x)).ok());
+            }
+        })
+    });
+    g.bench_function("encode", |b| {
+        b.iter(|| {
+            for x in xs {
+                black_box(model.encode(black_box(x)));
+            }
+        })
+    });
+    g.bench_function("filter", |b| {
+        b.iter(|| {
+            let mut e = warm.clone();
+            for z in &zs {
+                black_box(e.step_latent(black_box(z)).ok());
+            }
+        })
+    });
+    g.finish();
+
+    let device = Device::flex();
+    let act = model.blob().body.activation;
+    let enc = Mlp::new(2, model.blob().layout().hidden, 16, &device);
+    let burn_encode = |x: &State| -> Vec<f32> {
+        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
+        enc.forward(t, act)
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 output")
+    };
+    let mut g = c.benchmark_group("rig_peer");
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(3));
+    g.throughput(Throughput::Elements(WINDOW as u64));
+    g.bench_function("burn_encode", |b| {
+        b.iter(|| {
+            for x in xs {
+                black_box(burn_encode(black_box(x)));
+            }
+        })
+    });
+    g.bench_function("f64_filter", |b| {
+        b.iter(|| {
+            let mut r = Reference::new(&model, &zs[0]);
+            for z in &zs[1..] {
+                r.step(black_box(z));
+            }
+            black_box(r.g[16])
+        })
+    });
+    g.bench_function("step", |b| {
+        b.iter(|| {
+            let z0 = burn_encode(&model.normalise(&xs[0]));
+            let mut r = Reference::new(&model, &z0);
+            for x in &xs[1..] {
+                let z = burn_encode(&model.normalise(x));
+                r.step(&z);
+            }
+            black_box(r.g[16])
+        })
+    });
+    g.finish();
+}
+
 fn bench(c: &mut Criterion) {
-    let bytes = shipped_blob();
+    let bytes = shipped("pendulum.kkf");
     let model = Model::from_bytes(&bytes).expect("shipped blob");
     let xs = bench_window();
     let zs: Vec<Latent> = xs
@@ -176,6 +276,7 @@ fn bench(c: &mut Criterion) {
 fn main() {
     let mut c = Criterion::default().configure_from_args();
     bench(&mut c);
+    bench_rig(&mut c);
     c.final_summary();
     ratios();
 }
@@ -228,6 +329,7 @@ fn ratios() {
             ("peer", "adskalman_filter"),
         ),
     ];
+    pairs_rig(&read);
     println!("\nper step (ns)          estimator        peer   peer/estimator");
     for (what, ours, peer) in pairs {
         if let (Some(a), Some(b)) = (read(ours.0, ours.1), read(peer.0, peer.1)) {
@@ -238,4 +340,23 @@ fn ratios() {
         "(tail: updates 64-127, two-stage form; rec.: without the gain schedule, \
          the covariance recursion at every update)"
     );
+}
+
+/// The rig blob's ratios (see [`bench_rig`]).
+fn pairs_rig(read: &dyn Fn(&str, &str) -> Option<f64>) {
+    let pairs = [
+        ("rig step", ("rig", "step"), ("rig_peer", "step")),
+        (
+            "rig encoder",
+            ("rig", "encode"),
+            ("rig_peer", "burn_encode"),
+        ),
+        ("rig filter", ("rig", "filter"), ("rig_peer", "f64_filter")),
+    ];
+    println!("\nrig blob, per step (ns) estimator       peer   peer/estimator");
+    for (what, ours, peer) in pairs {
+        if let (Some(a), Some(b)) = (read(ours.0, ours.1), read(peer.0, peer.1)) {
+            println!("{what:<18} {a:>13.0} {b:>11.0} {:>16.1}", b / a);
+        }
+    }
 }

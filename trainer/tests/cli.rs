@@ -349,6 +349,31 @@ fn evaluate_writes_table1_its_report_and_the_figures() {
     assert_eq!(rollouts[0]["length_trace"].as_array().unwrap().len(), 64);
     let auc = report["seeds"][0]["roc_auc"].as_f64().unwrap();
     assert!((0.0..=1.0).contains(&auc));
+    // The bilinear family's row (trained on lengths drawn from [2, 5]):
+    // its 50 rollouts scored, and in range its MSE at most the paper's
+    // KLM, as the shipped blob measured (docs/bilinear.md).
+    assert!(md.contains("The bilinear family") && md.contains("| L | KLM | MLP | bilinear |"));
+    let family = &report["bilinear"];
+    assert_eq!(family["rollouts"].as_array().unwrap().len(), 50);
+    for row in family["rows"].as_array().unwrap() {
+        let l = row["length"].as_f64().unwrap();
+        if l >= 2.0 {
+            assert_eq!(row["n"], 10);
+            let paper = t[if l == 3.5 {
+                "3.5"
+            } else if l == 2.0 {
+                "2"
+            } else {
+                "5"
+            }]["paper"]["klm"]
+                .as_f64()
+                .unwrap();
+            assert!(row["mse"].as_f64().unwrap() <= paper, "{row}");
+        } else {
+            // Outside the trained lengths every rollout is flagged.
+            assert_eq!(row["untrusted"], 10, "{row}");
+        }
+    }
     for png in [
         "phase_portraits.png",
         "length_estimates.png",
@@ -401,6 +426,8 @@ fn baselines_train_export_and_score() {
         koopman()
             .args(["evaluate", "--quiet", "--json", "--weights"])
             .arg(&blob)
+            .arg("--bilinear")
+            .arg(root().join("weights/pendulum-bilinear.kkf"))
             .arg("--mlp")
             .arg(d.join("mlp.bpk"))
             .arg("--cbm")
@@ -416,6 +443,8 @@ fn baselines_train_export_and_score() {
     let out = koopman()
         .args(["evaluate", "--quiet", "--weights"])
         .arg(&blob)
+        .arg("--bilinear")
+        .arg(root().join("weights/pendulum-bilinear.kkf"))
         .arg("--mlp")
         .arg(d.join("cbm.bpk"))
         .output()

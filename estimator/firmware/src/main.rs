@@ -3,7 +3,9 @@
 //! Reads the shipped weights in place (`include_bytes!`), filters the test
 //! rollouts of `rollouts.bin` (embedded by `build.rs`) step by step, each
 //! twice (as shipped: the blob's gain schedule, then the two-stage tail;
-//! and with `Estimator::without_schedule`), and
+//! and with `Estimator::without_schedule`), then the string of
+//! `rig-rollouts.bin` with the rig blob (mode `rig`: the extended filter),
+//! and
 //! prints every step's outputs as the hex bits of each `f32`, so that
 //! `host-tests/tests/firmware.rs` can compare them with the host's, then a
 //! readable summary per rollout.
@@ -35,10 +37,12 @@ mod rollouts {
     include!(concat!(env!("OUT_DIR"), "/rollouts.rs"));
 }
 
-/// The shipped weights, left in flash and read in place.
-/// The blob at a 4-aligned address, so its weights are read as `f32` in
-/// place.
+/// The shipped weights, left in flash and read in place: each blob at a
+/// 4-aligned address, so its weights are read as `f32` in place. The
+/// protocol's blob ...
 static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/pendulum.kkf"));
+/// ... and the rig blob (the bilinear family, the extended filter).
+static RIG_BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
 
 /// Measurements in the protocol's estimation window: updates `1..WINDOW`
 /// are timed apart from the later ones.
@@ -207,11 +211,19 @@ fn stack_used(top: usize) -> usize {
 fn main() -> ! {
     let top = paint_stack();
     let mut line = Line::new();
-    let ok = run(&mut line);
+    let mut ok = run(&mut line);
     line.str("stack used=")
         .uint(stack_used(top) as u64)
         .str(" (high-water below main: model, estimator, step)")
         .send();
+    if ok {
+        let top = paint_stack();
+        ok = run_rig(&mut line);
+        line.str("rig stack used=")
+            .uint(stack_used(top) as u64)
+            .str(" (the same for the rig blob)")
+            .send();
+    }
     line.str(if ok { "done" } else { "failed" }).send();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
@@ -278,69 +290,110 @@ fn run(line: &mut Line) -> bool {
     ];
     for (id, xs) in &rollouts::ROLLOUTS {
         for (mode, est) in &modes {
-            let mut est = est.clone();
-            est.reset();
-            // Ticks of the updates in the protocol's window (t = 1..=63,
-            // the gain schedule's when it is used) and of those after it.
-            let (mut window_ticks, mut window_steps) = (0u64, 0u64);
-            let (mut after_ticks, mut after_steps) = (0u64, 0u64);
-            let mut last = None;
-            for x in xs {
-                let before = SYST::get_current();
-                let out = est.step(x);
-                let after = SYST::get_current();
-                let out = match out {
-                    Ok(o) => o,
-                    Err(e) => {
-                        line.str("error: step refused: ").str(e.message()).send();
-                        return false;
-                    }
-                };
-                // The first step only encodes and sets the prior.
-                let spent = u64::from(ticks(before, after));
-                if (1..WINDOW).contains(&out.t) {
-                    window_ticks += spent;
-                    window_steps += 1;
-                } else if out.t >= WINDOW {
-                    after_ticks += spent;
-                    after_steps += 1;
-                }
-                line.str("step ")
-                    .uint(u64::from(*id))
-                    .str(" ")
-                    .str(mode)
-                    .str(" ");
-                line.uint(u64::from(out.t)).str(" ");
-                for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
-                    line.hex(*v);
-                }
-                line.str(out.trust.word()).str(" ");
-                reasons(line, &out.trust);
-                line.send();
-                last = Some(out);
-            }
-            let before = SYST::get_current();
-            let z = model.encode(&model.normalise(&[0.5, -0.25]));
-            let after = SYST::get_current();
-            core::hint::black_box(z);
-            if let Some(out) = last {
-                let p = out.params;
-                line.str("rollout ").uint(u64::from(*id));
-                line.str(" mode=").str(mode);
-                line.str(" length=").dec(p[0]);
-                line.str(" std=").dec(out.param_std[0]);
-                line.str(" sigma=").dec(out.sigma[0]);
-                line.str(" trust=").str(out.trust.word()).str(" ");
-                reasons(line, &out.trust);
-                line.str(" window_steps=").uint(window_steps);
-                line.str(" window_ticks=").uint(window_ticks);
-                line.str(" after_steps=").uint(after_steps);
-                line.str(" after_ticks=").uint(after_ticks);
-                line.str(" encode_ticks=")
-                    .uint(u64::from(ticks(before, after)));
-                line.send();
+            if !filter(line, &model, *id, mode, est.clone(), xs) {
+                return false;
             }
         }
+    }
+    true
+}
+
+/// The rig blob over the string of `rig-rollouts.bin`, at its trained
+/// gravity (9.81).
+#[inline(never)]
+fn run_rig(line: &mut Line) -> bool {
+    let model = match Model::from_bytes(&RIG_BLOB.0) {
+        Ok(m) => m,
+        Err(e) => {
+            line.str("error: rig blob refused: ")
+                .str(e.message())
+                .send();
+            return false;
+        }
+    };
+    line.str("rig sizes blob=")
+        .uint(RIG_BLOB.0.len() as u64)
+        .str(" model=")
+        .uint(core::mem::size_of::<Model>() as u64)
+        .send();
+    let est = Estimator::new(&model).at_trained_gravity();
+    rollouts::RIG_ROLLOUTS
+        .iter()
+        .all(|(id, xs)| filter(line, &model, *id, "rig", est.clone(), xs))
+}
+
+/// Filters one rollout from `est` reset, printing every step's outputs
+/// and a summary with the instructions spent; `false` if a step was
+/// refused.
+#[inline(never)]
+fn filter(
+    line: &mut Line,
+    model: &Model,
+    id: u32,
+    mode: &str,
+    mut est: Estimator,
+    xs: &[[f32; 2]],
+) -> bool {
+    est.reset();
+    // Ticks of the updates in the protocol's window (t = 1..=63, the gain
+    // schedule's when it is used) and of those after it.
+    let (mut window_ticks, mut window_steps) = (0u64, 0u64);
+    let (mut after_ticks, mut after_steps) = (0u64, 0u64);
+    let mut last = None;
+    for x in xs {
+        let before = SYST::get_current();
+        let out = est.step(x);
+        let after = SYST::get_current();
+        let out = match out {
+            Ok(o) => o,
+            Err(e) => {
+                line.str("error: step refused: ").str(e.message()).send();
+                return false;
+            }
+        };
+        // The first step only encodes and sets the prior.
+        let spent = u64::from(ticks(before, after));
+        if (1..WINDOW).contains(&out.t) {
+            window_ticks += spent;
+            window_steps += 1;
+        } else if out.t >= WINDOW {
+            after_ticks += spent;
+            after_steps += 1;
+        }
+        line.str("step ")
+            .uint(u64::from(id))
+            .str(" ")
+            .str(mode)
+            .str(" ");
+        line.uint(u64::from(out.t)).str(" ");
+        for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
+            line.hex(*v);
+        }
+        line.str(out.trust.word()).str(" ");
+        reasons(line, &out.trust);
+        line.send();
+        last = Some(out);
+    }
+    let before = SYST::get_current();
+    let z = model.encode(&model.normalise(&[0.5, -0.25]));
+    let after = SYST::get_current();
+    core::hint::black_box(z);
+    if let Some(out) = last {
+        let p = out.params;
+        line.str("rollout ").uint(u64::from(id));
+        line.str(" mode=").str(mode);
+        line.str(" length=").dec(p[0]);
+        line.str(" std=").dec(out.param_std[0]);
+        line.str(" sigma=").dec(out.sigma[0]);
+        line.str(" trust=").str(out.trust.word()).str(" ");
+        reasons(line, &out.trust);
+        line.str(" window_steps=").uint(window_steps);
+        line.str(" window_ticks=").uint(window_ticks);
+        line.str(" after_steps=").uint(after_steps);
+        line.str(" after_ticks=").uint(after_ticks);
+        line.str(" encode_ticks=")
+            .uint(u64::from(ticks(before, after)));
+        line.send();
     }
     true
 }

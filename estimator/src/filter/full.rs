@@ -7,7 +7,7 @@ use super::kernels::{
     unit_lower_inverse, upper_rows,
 };
 use crate::blob::{Family, FilterSpec};
-use crate::model::{KoopmanColumns, KoopmanRows, columns};
+use crate::model::KoopmanColumns;
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
 /// The prior `P`: `diag(prior_var)`.
@@ -50,39 +50,43 @@ impl Estimator<'_> {
             return self.predict_only_bilinear(p);
         }
         let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
-        self.predict_only_with(p, y, self.model.koopman_rows())
+        self.predict_only_with(p, y, self.model.koopman_columns())
     }
 
     /// [`Estimator::predict_only`] of the bilinear family (its Jacobian in
     /// this frame only).
     #[inline(never)]
     fn predict_only_bilinear(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
-        let (y, c) = self
+        let (y, ct) = self
             .model
             .bilinear_step(&self.g)
             .ok_or(Error::BlobShapeMismatch)?;
-        self.predict_only_with(p, y, &c)
+        self.predict_only_with(p, y, &ct)
     }
 
     /// [`Estimator::predict_only`] with the predicted latent `y` and the
-    /// transition's latent rows `c`.
-    fn predict_only_with(&self, p: &Cov, y: Latent, c: &KoopmanRows) -> Result<(Aug, Cov), Error> {
+    /// transition's latent rows by columns, `ct` = `C^T`.
+    fn predict_only_with(
+        &self,
+        p: &Cov,
+        y: Latent,
+        ct: &KoopmanColumns,
+    ) -> Result<(Aug, Cov), Error> {
         let spec = &self.model.blob().body.filter;
         let mut g = self.g;
         for (gi, yi) in g.iter_mut().zip(&y) {
             *gi = *yi;
         }
-        let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
-        for (ni, ci) in n.iter_mut().zip(c) {
-            *ni = combo(ci.iter().copied().zip(p));
-        }
+        let n = latent_rows_of_fp(ct, p);
+        let mut pyy = upper_of_nct(&n, ct);
+        mirror_upper(&mut pyy);
         let mut out = *p;
-        for (i, (row, ni)) in out.iter_mut().zip(&n).enumerate() {
-            for (j, (d, cj)) in row.iter_mut().zip(c).enumerate() {
-                *d = dot(ni, cj);
-                if i == j {
-                    *d += spec.q.get(i).copied().unwrap_or(0.0);
-                }
+        for (i, ((row, ni), pyy_i)) in out.iter_mut().zip(&n).zip(&pyy).enumerate() {
+            for (d, v) in row.iter_mut().zip(pyy_i) {
+                *d = *v;
+            }
+            if let (Some(d), Some(q)) = (row.get_mut(i), spec.q.get(i)) {
+                *d += q;
             }
             for (d, v) in row.iter_mut().skip(LATENT_DIM).zip(tail(ni)) {
                 *d = *v;
@@ -121,16 +125,15 @@ impl Estimator<'_> {
             return self.predict_update_bilinear(z, nis);
         }
         let (y, nu) = self.predict_latent(z);
-        let (c, ct) = (self.model.koopman_rows(), self.model.koopman_columns());
-        self.predict_update_with(z, (c, ct), y, nu, nis)
+        self.predict_update_with(z, self.model.koopman_columns(), y, nu, nis)
     }
 
     /// [`Estimator::predict_update`] of the bilinear family: its
-    /// Jacobian's rows and their transpose live in this frame only (the
-    /// linear path's stack stays as it was).
+    /// Jacobian's columns live in this frame only (the linear path's stack
+    /// stays as it was).
     #[inline(never)]
     fn predict_update_bilinear(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
-        let (y, c) = self
+        let (y, ct) = self
             .model
             .bilinear_step(&self.g)
             .ok_or(Error::BlobShapeMismatch)?;
@@ -138,19 +141,19 @@ impl Estimator<'_> {
         for (v, yi) in nu.iter_mut().zip(&y) {
             *v -= yi;
         }
-        self.predict_update_with(z, (&c, &columns(&c)), y, nu, nis)
+        self.predict_update_with(z, &ct, y, nu, nis)
     }
 
-    /// [`Estimator::predict_update`] with the latent rows `C` of the
-    /// transition (and their transpose), the predicted latent `y` and the
-    /// innovation `nu = z - y`; writes the normalised innovation squared
-    /// `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for both
+    /// [`Estimator::predict_update`] with the latent rows of the
+    /// transition by columns (`ct` = `C^T`), the predicted latent `y` and
+    /// the innovation `nu = z - y`; writes the normalised innovation
+    /// squared `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for both
     /// families' callers, not one each.)
     #[inline(never)]
     fn predict_update_with(
         &self,
         z: &Latent,
-        (c, ct): (&KoopmanRows, &KoopmanColumns),
+        ct: &KoopmanColumns,
         y: Latent,
         nu: Latent,
         nis: &mut f32,
@@ -166,22 +169,8 @@ impl Estimator<'_> {
         // Predict the covariance: N = C P (the latent rows of F P), then
         // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
         // P'_pp = P_pp + Q_p.
-        let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
-        for (ni, ci) in n.iter_mut().zip(c) {
-            *ni = combo(ci.iter().copied().zip(&self.p));
-        }
-        // Only the upper triangle is needed: rows 4g..4g+3 from column 4g.
-        let mut pyy: LatentSquare = [[0.0; LATENT_DIM]; LATENT_DIM];
-        {
-            let (rows, _) = pyy.as_chunks_mut::<4>();
-            let (ns, _) = n.as_chunks::<4>();
-            if let ([r0, r1, r2, r3], [n0, n1, n2, n3]) = (rows, ns) {
-                upper_rows::<16>(r0, n0, ct);
-                upper_rows::<12>(r1, n1, ct);
-                upper_rows::<8>(r2, n2, ct);
-                upper_rows::<4>(r3, n3, ct);
-            }
-        }
+        let n = latent_rows_of_fp(ct, &self.p);
+        let mut pyy = upper_of_nct(&n, ct);
         mirror_upper(&mut pyy);
         let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
         for (dst, ni) in pyp.iter_mut().zip(&n) {
@@ -342,4 +331,36 @@ impl Estimator<'_> {
             Err(Error::FilterNotPositiveDefinite)
         }
     }
+}
+
+/// `N = C P`, the latent rows of `F P`, from `ct` = `C^T`: row `i` is the
+/// sum of `P`'s rows scaled by column `i` of `ct`, in the order of `k`
+/// ([`combo`]).
+#[inline(always)]
+fn latent_rows_of_fp(ct: &KoopmanColumns, p: &Cov) -> [[f32; AUG_DIM]; LATENT_DIM] {
+    let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
+    for (i, ni) in n.iter_mut().enumerate() {
+        *ni = combo(
+            ct.iter()
+                .map(|col| col.get(i).copied().unwrap_or(0.0))
+                .zip(p),
+        );
+    }
+    n
+}
+
+/// The upper triangle of `N C^T` (`P'_yy` before `Q`): rows `4g..4g+3`
+/// from column `4g` ([`upper_rows`]); zeros below the diagonal's groups.
+#[inline(always)]
+fn upper_of_nct(n: &[[f32; AUG_DIM]; LATENT_DIM], ct: &KoopmanColumns) -> LatentSquare {
+    let mut pyy: LatentSquare = [[0.0; LATENT_DIM]; LATENT_DIM];
+    let (rows, _) = pyy.as_chunks_mut::<4>();
+    let (ns, _) = n.as_chunks::<4>();
+    if let ([r0, r1, r2, r3], [n0, n1, n2, n3]) = (rows, ns) {
+        upper_rows::<16>(r0, n0, ct);
+        upper_rows::<12>(r1, n1, ct);
+        upper_rows::<8>(r2, n2, ct);
+        upper_rows::<4>(r3, n3, ct);
+    }
+    pyy
 }

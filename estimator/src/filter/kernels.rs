@@ -128,37 +128,83 @@ pub(crate) fn ldl(s: &mut LatentSquare, d_inv: &mut Latent) -> Result<(), Error>
 /// `X = L^-1` for the unit lower triangular `L` in the strict lower
 /// triangle of `l` (as [`ldl`] leaves it); `X` is unit lower triangular
 /// too, returned with zeros above the diagonal. Row by row:
-/// `X_i = e_i - sum_{k<i} L_ik X_k` (whole rows: `X_k` is zero after its
-/// `k`-th entry, so the extra terms add zeros).
+/// `X_i = e_i - sum_{k<i} L_ik X_k`. `X_k` is zero after its `k`-th
+/// entry, so rows `4g..4g+3` are summed over their first `4g + 4`
+/// entries only ([`lower_rows`]): the entries left out would add zeros.
 pub(crate) fn unit_lower_inverse(l: &LatentSquare) -> LatentSquare {
     let mut x = [[0.0f32; LATENT_DIM]; LATENT_DIM];
-    for (i, lrow) in l.iter().enumerate() {
+    lower_rows::<4>(&mut x, l, 0);
+    lower_rows::<8>(&mut x, l, 4);
+    lower_rows::<12>(&mut x, l, 8);
+    lower_rows::<16>(&mut x, l, 12);
+    x
+}
+
+/// Rows `from..from + 4` of [`unit_lower_inverse`], each the sum of
+/// `-L_ik X_k` over `k < i` in the order of `k` on the first `W` entries,
+/// then 1 on the diagonal.
+#[inline(always)]
+fn lower_rows<const W: usize>(x: &mut LatentSquare, l: &LatentSquare, from: usize) {
+    for i in from..from + 4 {
         let (done, rest) = x.split_at_mut(i);
-        let Some(xi) = rest.first_mut() else { break };
-        *xi = combo(lrow.iter().map(|v| -v).zip(done.iter()));
+        let (Some(xi), Some(lrow)) = (rest.first_mut(), l.get(i)) else {
+            return;
+        };
+        let mut acc = [0.0f32; W];
+        for (lik, xk) in lrow.iter().zip(done.iter()) {
+            if let Some(xk) = xk.first_chunk::<W>() {
+                for (o, v) in acc.iter_mut().zip(xk) {
+                    *o += -lik * v;
+                }
+            }
+        }
+        if let Some(dst) = xi.first_chunk_mut::<W>() {
+            *dst = acc;
+        }
         if let Some(d) = xi.get_mut(i) {
             *d = 1.0;
         }
     }
-    x
 }
 
 /// `S^-1 = X^T D^-1 X` from `X = L^-1` and `1 / D`: the sum over `k` of
 /// `d_k^-1 x_k x_k^T` (`x_k` row `k` of `X`, zero after its `k`-th
-/// entry). Rows `i <= k` take each term; the upper triangle is then
+/// entry). Rows `i <= k` take each term, rows `4g..4g+3` on their entries
+/// from `4g` on ([`upper_inverse_rows`]); the upper triangle is then
 /// mirrored, so the result is exactly symmetric.
 pub(crate) fn inverse_from_ldl(x: &LatentSquare, d_inv: &Latent) -> LatentSquare {
     let mut si = [[0.0f32; LATENT_DIM]; LATENT_DIM];
-    for (i, row) in si.iter_mut().enumerate() {
-        *row = combo(
-            x.iter()
-                .zip(d_inv)
-                .skip(i)
-                .map(|(xk, dk)| (xk.get(i).copied().unwrap_or(0.0) * dk, xk)),
-        );
-    }
+    upper_inverse_rows::<16>(&mut si, x, d_inv, 0);
+    upper_inverse_rows::<12>(&mut si, x, d_inv, 4);
+    upper_inverse_rows::<8>(&mut si, x, d_inv, 8);
+    upper_inverse_rows::<4>(&mut si, x, d_inv, 12);
     mirror_upper(&mut si);
     si
+}
+
+/// Rows `from..from + 4` of [`inverse_from_ldl`] on their last `W`
+/// entries: `sum_{k >= i} (x_k[i] d_k^-1) x_k`, in the order of `k`.
+#[inline(always)]
+fn upper_inverse_rows<const W: usize>(
+    si: &mut LatentSquare,
+    x: &LatentSquare,
+    d_inv: &Latent,
+    from: usize,
+) {
+    for (i, row) in si.iter_mut().enumerate().skip(from).take(4) {
+        let mut acc = [0.0f32; W];
+        for (xk, dk) in x.iter().zip(d_inv).skip(i) {
+            let a = xk.get(i).copied().unwrap_or(0.0) * dk;
+            if let Some(v) = xk.last_chunk::<W>() {
+                for (o, v) in acc.iter_mut().zip(v) {
+                    *o += a * v;
+                }
+            }
+        }
+        if let Some(dst) = row.last_chunk_mut::<W>() {
+            *dst = acc;
+        }
+    }
 }
 
 /// The inverse of a [`PARAM_DIM`] square matrix whose determinant is

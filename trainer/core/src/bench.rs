@@ -1,12 +1,30 @@
 //! The inputs the benchmarks and the instruction counts step through
 //! (`koopman bench`, the criterion bench and the callgrind harness in
 //! `host-tests`, the firmware's data): one test rollout in distribution,
-//! its estimation window and the steps after it.
+//! its estimation window and the steps after it; and, for the rig blob, a
+//! string swinging as a user's does ([`rig_window`]).
 
 use estimator::{Estimator, Latent, Model, State};
 
 use crate::data::{states_f32, test_set};
+use crate::physics::{Effect, EffectKind, Pendulum, Rig};
 use crate::protocol::{TEST_LENGTHS, WINDOW};
+
+/// The string of [`rig_window`]: length, m; release angle, rad; viscous
+/// damping, 1/s (inside the rig blob's trained ranges).
+pub const RIG_STRING: (f64, f64, f64) = (0.6, 0.3, 0.05);
+
+/// `n` raw states of a string of [`RIG_STRING`] at `g = 9.81`, sampled at
+/// the blob's interval `dt`: what the rig blob's timings step through.
+pub fn rig_window(n: usize, dt: f64) -> Vec<State> {
+    let (length, theta0, viscous) = RIG_STRING;
+    let p = Pendulum {
+        g: 9.81,
+        effects: vec![Effect::new(EffectKind::Viscous, viscous)],
+        ..Pendulum::of(Rig::Simple, length)
+    };
+    states_f32(&p.rollout([theta0, 0.0], n, dt))
+}
 
 /// The test rollout [`window`] is taken from (L = 3.5, in distribution).
 pub const WINDOW_ROLLOUT: usize = 34;

@@ -36,7 +36,8 @@
 //!    from the window on (where the device applies them), the latter no
 //!    less than [`CalibrateConfig::rate_floor`]. Where a
 //!    [`CalibrateConfig::range_margin`] is set, the range is held within
-//!    the trained lengths widened by it. The effect's standard deviation,
+//!    the trained lengths widened by it (with
+//!    [`CalibrateConfig::range_fixed`], it is those lengths widened). The effect's standard deviation,
 //!    where the blob declares one and the held-out rollouts carry its
 //!    truth, is set as the length's.
 //! 3. **check** (as many again): what the calibrated blob does on rollouts
@@ -96,6 +97,13 @@ pub struct CalibrateConfig {
     /// an extrapolation, whatever the estimates in distribution did.
     #[serde(default)]
     pub range_margin: Option<f64>,
+    /// With a [`CalibrateConfig::range_margin`]: the range is the trained
+    /// lengths widened by the margin, whatever the held-out estimates (for
+    /// a family that reads its ends to within the margin: its held-out
+    /// estimates at an end fall on either side of it, and a quantile
+    /// would flag half of a length it was trained on).
+    #[serde(default)]
+    pub range_fixed: bool,
     /// Coverage the standard deviations are set for (within 2 std).
     pub coverage: f64,
     /// A length estimate this fraction or more off the truth is wrong
@@ -166,6 +174,7 @@ impl Default for CalibrateConfig {
             envelope_alpha: 0.02,
             range_alpha: 0.002,
             range_margin: None,
+            range_fixed: false,
             coverage: 0.92,
             accurate: 0.2,
             swing_share: 0.1,
@@ -615,7 +624,12 @@ pub fn calibrate(
                 f64::from(spec.coordinate((f64::from(lo_l) / (1.0 + m)) as f32)),
                 f64::from(spec.coordinate((f64::from(hi_l) * (1.0 + m)) as f32)),
             ];
-            (lo.max(ends[0].min(ends[1])), hi.min(ends[0].max(ends[1])))
+            let (end_lo, end_hi) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
+            if cfg.range_fixed {
+                (end_lo, end_hi)
+            } else {
+                (lo.max(end_lo), hi.min(end_hi))
+            }
         }
         None => (lo, hi),
     };

@@ -27,14 +27,14 @@ pub enum Dynamics {
 
 impl Dynamics {
     /// The model of `m`'s blob: `F`, or `F_0, F_1, F_2, F_11` read from
-    /// the arena ([`estimator::blob::Body::bilinear`]).
+    /// the arena ([`estimator::blob::Blob::bilinear`]).
     pub fn of(m: &Model<'_>) -> Self {
         match m.family() {
             Family::Linear => {
                 Dynamics::Linear(DMatrix::from_fn(AUG_DIM, AUG_DIM, |i, j| m.f(i, j) as f64))
             }
             Family::Bilinear => {
-                let body = &m.blob().body;
+                let blob = m.blob();
                 let square = |v: F32s<'_>| {
                     DMatrix::from_row_iterator(
                         LATENT_DIM,
@@ -42,7 +42,7 @@ impl Dynamics {
                         v.iter().map(f64::from).chain(std::iter::repeat(f64::NAN)),
                     )
                 };
-                Dynamics::Bilinear(std::array::from_fn(|k| square(body.bilinear(k))))
+                Dynamics::Bilinear(std::array::from_fn(|k| square(blob.bilinear(k))))
             }
         }
     }

@@ -18,6 +18,10 @@ pub struct Args {
     /// CBM baseline (burnpack with its .json).
     #[arg(long, default_value = "weights/cbm.bpk")]
     cbm: PathBuf,
+    /// The bilinear family's blob (trained on lengths drawn from [2, 5]),
+    /// scored as a row of its own.
+    #[arg(long, default_value = "weights/pendulum-bilinear.kkf")]
+    bilinear: PathBuf,
     /// Score the KLM alone.
     #[arg(long)]
     klm_only: bool,
@@ -64,7 +68,10 @@ pub fn run(a: Args) -> Result<()> {
             cbm: (!a.klm_only).then_some(a.cbm),
         }],
     };
-    let r = evaluate::evaluate(&sets, &test, a.out.as_deref(), &command, a.quiet)?;
+    // The family's row beside the given weights (not beside seeds trained
+    // here, nor with --klm-only).
+    let bilinear = (a.seeds.is_none() && !a.klm_only).then_some(a.bilinear.as_path());
+    let r = evaluate::evaluate(&sets, bilinear, &test, a.out.as_deref(), &command, a.quiet)?;
     if a.json {
         super::say(&serde_json::to_string_pretty(&table1::to_json(&r.table))?)?;
     } else {

@@ -64,6 +64,20 @@ pub struct Args {
     /// --g 9.81.
     #[arg(long)]
     lab_rollouts: Option<usize>,
+    /// Training rollouts per length of the protocol's sets (with
+    /// --draw-lengths: this many times the number of --lengths, each its
+    /// own length).
+    #[arg(long)]
+    rollouts: Option<usize>,
+    /// Draw each training rollout's length uniformly between the smallest
+    /// and the largest of --lengths (as many rollouts as the grid would
+    /// give) instead of taking them as a grid.
+    #[arg(long)]
+    draw_lengths: bool,
+    /// Width of the encoder's and decoder's hidden layers (a multiple of
+    /// 32, at most 128; the estimator's step cost falls with it).
+    #[arg(long)]
+    hidden: Option<usize>,
     /// Measurements per training rollout (at least the window).
     #[arg(long)]
     rollout_steps: Option<usize>,
@@ -127,6 +141,16 @@ impl Args {
                 ..Default::default()
             });
         }
+        if let Some(v) = self.rollouts {
+            anyhow::ensure!(v > 0, "--rollouts must be at least 1");
+            cfg.rollouts_per_length = v;
+        }
+        if self.draw_lengths {
+            cfg.draw_lengths = true;
+        }
+        if let Some(v) = self.hidden {
+            cfg.hidden = v;
+        }
         if let Some(v) = self.rollout_steps {
             cfg.rollout_steps = v;
         }
@@ -142,6 +166,11 @@ impl Args {
             "lengths must be positive"
         );
         anyhow::ensure!(cfg.g > 0.0 && cfg.dt > 0.0, "g and dt must be positive");
+        anyhow::ensure!(
+            cfg.hidden >= 32 && cfg.hidden <= estimator::HIDDEN_DIM && cfg.hidden % 32 == 0,
+            "--hidden must be a multiple of 32 from 32 to {}",
+            estimator::HIDDEN_DIM
+        );
         anyhow::ensure!(
             cfg.window >= 2 && cfg.window <= ROLLOUT_LEN.max(cfg.rollout_steps),
             "window must be in 2..={}",

@@ -20,6 +20,7 @@ use trainer_core::io::write_atomic;
 use trainer_core::protocol::{ROLLOUT_LEN, TEST_LENGTHS};
 
 pub mod baselines;
+pub mod family;
 pub mod figures;
 pub mod score;
 pub mod table1;
@@ -71,6 +72,8 @@ pub struct Report {
     pub goals: Vec<Goal>,
     /// Trust verdicts per length: `[untrusted, rollouts]` summed over seeds.
     pub trust_counts: Vec<(f64, usize, usize)>,
+    /// The bilinear family's row, where its blob was scored.
+    pub bilinear: Option<family::Section>,
     /// Wall time of the scoring (and training, with seeds), s.
     pub seconds: f64,
 }
@@ -181,10 +184,28 @@ pub fn training_set_of(blob: &Path) -> Result<Dataset> {
     training_data(&export::config_of(blob))
 }
 
-/// Scores every seed, combines them and, with `out`, writes `table1.json`,
+/// Scores the bilinear family's blob at `path` on `test`, as the KLM is.
+pub fn score_family(path: &Path, test: &Dataset) -> Result<family::Section> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let model =
+        Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    anyhow::ensure!(
+        model.family() == estimator::blob::Family::Bilinear,
+        "{}: not a blob of the bilinear family",
+        path.display()
+    );
+    Ok(family::Section::new(
+        path.display().to_string(),
+        score::score(&model, test)?,
+    ))
+}
+
+/// Scores every seed (and the bilinear family's blob `bilinear`, where
+/// given), combines them and, with `out`, writes `table1.json`,
 /// `table1.md`, `report.json` and the figures (from the first seed).
 pub fn evaluate(
     weights: &[Weights],
+    bilinear: Option<&Path>,
     test: &Dataset,
     out: Option<&Path>,
     command: &str,
@@ -195,6 +216,7 @@ pub fn evaluate(
         .iter()
         .map(|w| score_weights(w, test, quiet))
         .collect::<Result<Vec<_>>>()?;
+    let bilinear = bilinear.map(|p| score_family(p, test)).transpose()?;
     let tables: Vec<Vec<LengthScore>> = seeds.iter().map(|s| s.lengths.clone()).collect();
     let table = table1::combine(&tables);
     let report = Report {
@@ -202,6 +224,7 @@ pub fn evaluate(
         goals: table1::goals(&table),
         trust_counts: table.iter().map(|r| (r.length, r.untrusted, r.n)).collect(),
         table,
+        bilinear,
         seconds: start.elapsed().as_secs_f64(),
         seeds,
     };
@@ -215,7 +238,11 @@ pub fn evaluate(
 pub fn markdown(report: &Report) -> String {
     let seeds: Vec<u64> = report.seeds.iter().map(|s| s.seed).collect();
     let auc: Vec<f64> = report.seeds.iter().filter_map(|s| s.roc_auc).collect();
-    table1::markdown(&report.table, &seeds, &auc, &report.command)
+    let mut s = table1::markdown(&report.table, &seeds, &auc, &report.command);
+    if let (Some(f), Some(first)) = (&report.bilinear, report.seeds.first()) {
+        s.push_str(&family::markdown(f, &first.rollouts));
+    }
+    s
 }
 
 fn write_outputs(

@@ -3,10 +3,7 @@
 
 use anyhow::Result;
 use burn::nn::Linear;
-use estimator::blob::{
-    BILINEAR_ARENA_LEN, Blob, Body, F32s, Family, FilterSpec, Header, ParamSpec, SCHEDULE_AT,
-    TrustSpec,
-};
+use estimator::blob::{Blob, Body, F32s, Family, FilterSpec, Header, Layout, ParamSpec, TrustSpec};
 use estimator::{AUG_DIM, INPUT_DIM, PARAM_DIM};
 
 use super::schedule::{ScheduleCheck, gain_schedule};
@@ -42,11 +39,25 @@ pub fn linear_to_blob(l: &Linear) -> (usize, usize, Vec<f32>, Vec<f32>) {
     (d_in, d_out, w, b)
 }
 
-/// The weight arena a [`Blob`] borrows from, as little-endian bytes, and
-/// the family whose layout it has.
+/// The weight arena a [`Blob`] borrows from, as little-endian bytes, the
+/// family whose layout it has and the layout (the MLPs' hidden width).
 pub struct BlobParts {
     arena: Vec<u8>,
     family: Family,
+    layout: Layout,
+}
+
+/// The encoder's and decoder's layers in the arena's order, and their
+/// layout (the hidden width: the encoder's first layer's outputs).
+fn mlp_values(enc: &Mlp, dec: &Mlp) -> (Vec<f32>, Layout) {
+    let mut arena = Vec::new();
+    let [_, hidden] = enc.l0.weight.val().dims();
+    for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
+        let (_, _, w, b) = linear_to_blob(l);
+        arena.extend(w);
+        arena.extend(b);
+    }
+    (arena, Layout { hidden })
 }
 
 impl BlobParts {
@@ -55,17 +66,13 @@ impl BlobParts {
     /// bias each), `F`, `B` (zero: no input is modelled yet). No gain
     /// schedule: see [`BlobParts::set_schedule`].
     pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32]) -> Self {
-        let mut arena: Vec<f32> = Vec::with_capacity(SCHEDULE_AT);
-        for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
-            let (_, _, w, b) = linear_to_blob(l);
-            arena.extend(w);
-            arena.extend(b);
-        }
+        let (mut arena, layout) = mlp_values(enc, dec);
         arena.extend_from_slice(f);
         arena.extend([0.0; AUG_DIM * INPUT_DIM]);
         BlobParts {
             arena: le_bytes(&arena),
             family: Family::Linear,
+            layout,
         }
     }
 
@@ -73,16 +80,12 @@ impl BlobParts {
     /// arena"): encoder and decoder layers, then `F_0, F_1, F_2, F_11`
     /// (`blocks`, each row-major).
     pub fn bilinear(enc: &Mlp, dec: &Mlp, blocks: &[f32]) -> Self {
-        let mut arena: Vec<f32> = Vec::with_capacity(BILINEAR_ARENA_LEN);
-        for l in [&enc.l0, &enc.l1, &enc.l2, &dec.l0, &dec.l1, &dec.l2] {
-            let (_, _, w, b) = linear_to_blob(l);
-            arena.extend(w);
-            arena.extend(b);
-        }
+        let (mut arena, layout) = mlp_values(enc, dec);
         arena.extend_from_slice(blocks);
         BlobParts {
             arena: le_bytes(&arena),
             family: Family::Bilinear,
+            layout,
         }
     }
 
@@ -95,7 +98,7 @@ impl BlobParts {
     fn f(&self) -> Vec<f32> {
         F32s(&self.arena)
             .iter()
-            .skip(estimator::blob::F_AT)
+            .skip(self.layout.f_at())
             .take(AUG_DIM * AUG_DIM)
             .collect()
     }
@@ -109,7 +112,7 @@ impl BlobParts {
             "a gain schedule is for the linear family (the extended filter's gains depend on the state)"
         );
         let (schedule, check) = gain_schedule(&self.f(), filter)?;
-        self.arena.truncate(SCHEDULE_AT * 4);
+        self.arena.truncate(self.layout.schedule_at() * 4);
         self.arena.extend(le_bytes(&schedule));
         Ok(check)
     }
@@ -124,7 +127,7 @@ impl BlobParts {
         trust: TrustSpec<'a>,
     ) -> Blob<'a> {
         Blob {
-            header: Header::CURRENT,
+            header: Header::with_hidden(self.layout.hidden as u16),
             body: Body {
                 dt: cfg.dt as f32,
                 g: cfg.g as f32,

@@ -430,6 +430,14 @@ pub fn calibration_for(cfg: &TrainConfig) -> CalibrateConfig {
             }),
             ..CalibrateConfig::default()
         },
+        // The bilinear family on the protocol's rods, trained on lengths
+        // drawn from the range: it reads the range's ends to within the
+        // goal's 3%, so the range is the trained lengths widened by 3%.
+        None if cfg.model == ModelKind::Bilinear => CalibrateConfig {
+            range_margin: Some(0.03),
+            range_fixed: true,
+            ..CalibrateConfig::default()
+        },
         None => CalibrateConfig::default(),
     }
 }

@@ -62,6 +62,12 @@ pub struct TrainConfig {
     pub prior_std_effect: f64,
     /// Rollouts per training length.
     pub rollouts_per_length: usize,
+    /// Draw the protocol set's lengths instead of taking `lengths` as a
+    /// grid: as many rollouts as the grid would give, each its own length
+    /// uniform between the smallest and the largest of `lengths`
+    /// (`data::uniform_lengths`). A family whose dynamics move with the
+    /// length learns the continuum, not two values.
+    pub draw_lengths: bool,
     /// Draw the training rollouts lab-like instead (`data::drawn`): each
     /// its own length (log-uniform between the smallest and the largest
     /// of `lengths`), release angle (log-uniform over `theta0`) and effect
@@ -130,6 +136,7 @@ impl Default for TrainConfig {
             effect: None,
             prior_std_effect: 0.0,
             rollouts_per_length: 200,
+            draw_lengths: false,
             lab: None,
             rollout_steps: ROLLOUT_LEN,
             window: 128,

@@ -120,10 +120,17 @@ pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
             },
         );
     }
+    // Drawn lengths: as many rollouts as the grid would have, one each.
+    let (lengths, per_length) = if cfg.draw_lengths {
+        let n = cfg.lengths.len() * cfg.rollouts_per_length;
+        (data::uniform_lengths(cfg.seed, cfg.length_range(), n), 1)
+    } else {
+        (cfg.lengths.clone(), cfg.rollouts_per_length)
+    };
     Ok(data::training_set_with(
         cfg.seed,
-        &cfg.lengths,
-        cfg.rollouts_per_length,
+        &lengths,
+        per_length,
         &[],
         data::Physics {
             rig: cfg.rig,

@@ -45,7 +45,11 @@ impl Batcher {
             xs.push(r.xs.iter().map(|&x| norm.apply(x)).collect());
             ps.push(cfg.coordinates(m)?);
             // Drawn lengths are all different: one stratum of them all.
-            let stratum_length = if cfg.lab.is_some() { 0.0 } else { m.length };
+            let stratum_length = if cfg.lab.is_some() || cfg.draw_lengths {
+                0.0
+            } else {
+                m.length
+            };
             match lengths.iter().position(|&l| l == stratum_length) {
                 Some(k) => strata[k].push(i),
                 None => {

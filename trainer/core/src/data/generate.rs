@@ -114,6 +114,15 @@ pub fn training_set_with(
     make("train", seed, specs, physics)
 }
 
+/// `n` lengths drawn uniformly from `[lo, hi]` (a generator of their own,
+/// seeded with `seed`, so the rollouts' angles are drawn as for a grid):
+/// the training lengths of a family that should read a continuum, given to
+/// [`training_set_with`] one rollout each.
+pub fn uniform_lengths(seed: u64, [lo, hi]: [f64; 2], n: usize) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4c45_4e47_5448_5300);
+    (0..n).map(|_| rng.random_range(lo..=hi)).collect()
+}
+
 /// The test set: 10 rollouts per test length, `theta_0 = pi/2 + k 0.4 pi / 9`.
 pub fn test_set(seed: u64, lengths: &[f64], effects: &[Effect]) -> Dataset {
     test_set_with(seed, lengths, effects, Physics::PROTOCOL)

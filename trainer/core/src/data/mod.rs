@@ -22,7 +22,9 @@ pub mod lab;
 pub mod project_csv;
 pub mod table;
 
-pub use generate::{Physics, test_set, test_set_with, training_set, training_set_with};
+pub use generate::{
+    Physics, test_set, test_set_with, training_set, training_set_with, uniform_lengths,
+};
 pub use project_csv::{CSV_HEADER, read, sidecar_path, to_csv, write};
 pub use table::CsvError;
 
