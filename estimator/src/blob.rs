@@ -52,7 +52,9 @@
 //! deviations, all set by `koopman calibrate` on held-out rollouts.
 //!
 //! # The arena (format version 4)
-//! In order, with the sizes of [`ENCODER_SHAPES`] and [`DECODER_SHAPES`]:
+//! In order, with the sizes of [`Layout::encoder_shapes`] and
+//! [`Layout::decoder_shapes`] at the header's hidden width (one of
+//! [`HIDDEN_WIDTHS`](crate::HIDDEN_WIDTHS)):
 //! for each encoder layer then each decoder layer, its weight `W` then its
 //! bias `b`; then `F` ([`AUG_DIM`] x [`AUG_DIM`], row-major), then `B`
 //! ([`AUG_DIM`] x [`INPUT_DIM`], row-major); then the gain schedule of
@@ -61,12 +63,13 @@
 //! weights (burn's `Linear::weight` layout, the transpose of PyTorch's).
 //! Each input's weights are contiguous, so a layer is a sum of scaled rows
 //! and an input that is zero (half of them after a ReLU) is skipped.
-//! [`layer_span`], [`F_AT`], [`B_AT`], [`SCHEDULE_AT`] and [`arena_len`]
-//! give the offsets.
+//! [`Layout`] gives the offsets ([`Blob::layout`] a blob's); [`F_AT`],
+//! [`SCHEDULE_AT`], [`arena_len`] and [`layer_span`] are the widest
+//! layout's.
 //!
 //! # The bilinear arena
 //! A [`Family::Bilinear`] blob holds, after the encoder and decoder (at
-//! [`F_AT`]), [`BILINEAR_BLOCKS`] matrices of [`LATENT_DIM`] square,
+//! [`Layout::f_at`]), [`BILINEAR_BLOCKS`] matrices of [`LATENT_DIM`] square,
 //! row-major: `F_0`, `F_1`, `F_2`, `F_11`, so that
 //! `y' = F(q) y`, `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11` with `q`
 //! the parameters' coordinates (static). Nothing follows them: no `B`
@@ -140,6 +143,16 @@ impl Header {
         hidden_dim: HIDDEN_DIM as u16,
         input_dim: INPUT_DIM as u16,
     };
+
+    /// This build's dimensions, with a hidden width it runs; else
+    /// [`Error::BlobShapeMismatch`].
+    pub fn check_dims(&self) -> Result<(), Error> {
+        if *self == Header::with_hidden(self.hidden_dim) && Layout::of(self).is_some() {
+            Ok(())
+        } else {
+            Err(Error::BlobShapeMismatch)
+        }
+    }
 
     /// The current header of a blob whose hidden layers are `hidden`
     /// wide (one of [`HIDDEN_WIDTHS`](crate::HIDDEN_WIDTHS)).
@@ -750,7 +763,8 @@ pub struct Body<'a> {
     /// blob's start (see [`Blob::to_slice`], which chooses them).
     #[serde(borrow)]
     pub pad: &'a [u8],
-    /// The weight arena, [`arena_len`] values in the module's order.
+    /// The weight arena, [`Layout::arena_len`] (or
+    /// [`Layout::bilinear_arena_len`]) values in the module's order.
     #[serde(borrow)]
     pub weights: F32s<'a>,
 }
@@ -860,9 +874,7 @@ impl<'a> Blob<'a> {
         if header.version != FORMAT_VERSION {
             return Err(Error::BlobBadVersion);
         }
-        if header != Header::with_hidden(header.hidden_dim) || Layout::of(&header).is_none() {
-            return Err(Error::BlobShapeMismatch);
-        }
+        header.check_dims()?;
         let (blob, rest) = postcard::take_from_bytes_crc32::<Blob<'a>>(bytes, CRC.digest())
             .map_err(|e| match e {
                 postcard::Error::DeserializeBadCrc => Error::BlobBadCrc,
@@ -895,8 +907,11 @@ impl<'a> Blob<'a> {
         postcard::to_slice_crc32(&blob, buf, CRC.digest()).map_err(|_| Error::InputBadLength)
     }
 
-    /// Checks every array's length and every value's finiteness.
+    /// Checks the dimensions, every array's length and every value's
+    /// finiteness.
     pub fn validate(&self) -> Result<(), Error> {
+        // A hand-built blob reaches here without `from_bytes`'s check.
+        self.header.check_dims()?;
         let b = &self.body;
         let finite = |a: &[f32]| a.iter().all(|v| v.is_finite());
         let positive = |v: f32| v.is_finite() && v > 0.0;

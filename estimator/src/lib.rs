@@ -47,7 +47,9 @@ pub const HIDDEN_DIM: usize = 128;
 /// The hidden widths a blob may have (its header's `hidden_dim`): the
 /// estimator runs each with sizes fixed at compile time. A narrower
 /// encoder costs a step less (the rig blob's 64).
-pub const HIDDEN_WIDTHS: [usize; 2] = [64, HIDDEN_DIM];
+pub const HIDDEN_WIDTHS: [usize; 2] = [HIDDEN_NARROW, HIDDEN_DIM];
+/// The narrower of the [`HIDDEN_WIDTHS`] (the rig blob's).
+pub const HIDDEN_NARROW: usize = 64;
 /// Control inputs (torque).
 pub const INPUT_DIM: usize = 1;
 /// The protocol's estimation window: the filter sees `x_0 .. x_63`, and

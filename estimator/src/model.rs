@@ -5,7 +5,8 @@ use crate::blob::{
     Activation, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Family, Layout, Net, SCHEDULE_STEP_LEN,
 };
 use crate::{
-    AUG_DIM, Aug, Error, HIDDEN_DIM, HIDDEN_WIDTHS, LATENT_DIM, Latent, PARAM_DIM, STATE_DIM, State,
+    AUG_DIM, Aug, Error, HIDDEN_DIM, HIDDEN_NARROW, HIDDEN_WIDTHS, LATENT_DIM, Latent, PARAM_DIM,
+    STATE_DIM, State,
 };
 
 #[cfg(target_endian = "big")]
@@ -28,13 +29,9 @@ pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
 const HIDDEN_BLOCK: usize = 32;
 #[cfg(not(target_arch = "x86_64"))]
 const HIDDEN_BLOCK: usize = 16;
-/// The narrower hidden width a blob may have ([`HIDDEN_WIDTHS`]).
-const NARROW: usize = 64;
-// The widths [`Nets`] runs are the crate's, and `dense` needs the block to
-// divide each.
+// `dense` needs the block to divide each width [`Nets`] runs.
 const _: () = {
     let [narrow, wide] = HIDDEN_WIDTHS;
-    assert!(narrow == NARROW && wide == HIDDEN_DIM);
     assert!(narrow.is_multiple_of(HIDDEN_BLOCK) && wide.is_multiple_of(HIDDEN_BLOCK));
 };
 
@@ -139,8 +136,8 @@ fn columns(a: &[f32], at: usize) -> Result<KoopmanColumns, Error> {
 enum Nets<'a> {
     /// 64-wide hidden layers.
     Narrow(
-        Mlp<'a, STATE_DIM, NARROW, LATENT_DIM>,
-        Mlp<'a, LATENT_DIM, NARROW, STATE_DIM>,
+        Mlp<'a, STATE_DIM, HIDDEN_NARROW, LATENT_DIM>,
+        Mlp<'a, LATENT_DIM, HIDDEN_NARROW, STATE_DIM>,
     ),
     /// [`HIDDEN_DIM`]-wide hidden layers.
     Wide(
@@ -152,7 +149,7 @@ enum Nets<'a> {
 impl<'a> Nets<'a> {
     fn from_arena(a: &'a [f32], layout: Layout) -> Result<Self, Error> {
         match layout.hidden {
-            NARROW => Ok(Nets::Narrow(
+            HIDDEN_NARROW => Ok(Nets::Narrow(
                 Mlp::from_arena(a, layout, Net::Encoder)?,
                 Mlp::from_arena(a, layout, Net::Decoder)?,
             )),

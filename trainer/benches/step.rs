@@ -219,7 +219,7 @@ fn bench(c: &mut Criterion) {
 
     let device = Device::flex();
     let act = model.blob().body.activation;
-    let enc = Mlp::new(2, 128, 16, &device);
+    let enc = Mlp::new(2, model.blob().layout().hidden, 16, &device);
     let burn_encode = |x: &State| -> Vec<f32> {
         let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
         enc.forward(t, act)

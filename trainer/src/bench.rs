@@ -14,8 +14,8 @@
 //! - `step_recursive`, `filter_recursive`: the same as `step`, `filter` with
 //!   [`Estimator::without_schedule`], the covariance recursion at every
 //!   update (what a step costs after the schedule's last update);
-//! - peer `burn_encoder`: the same encoder architecture (2 -> 128 -> 128
-//!   -> 16, the blob's activation, random weights: burn's time does not
+//! - peer `burn_encoder`: the same encoder architecture (2 -> H -> H ->
+//!   16 at the blob's hidden width H, the blob's activation, random weights: burn's time does not
 //!   depend on them) through burn's forward pass, flex CPU backend, a
 //!   batch of one;
 //! - peer `f64_filter`: [`Reference`], the textbook filter on dynamic f64
@@ -170,7 +170,12 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
 
     let device = Device::flex();
     let act = model.blob().body.activation;
-    let enc = Mlp::new(2, estimator::HIDDEN_DIM, estimator::LATENT_DIM, &device);
+    let enc = Mlp::new(
+        2,
+        model.blob().layout().hidden,
+        estimator::LATENT_DIM,
+        &device,
+    );
     let burn_encode = |x: &State| -> Vec<f32> {
         let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
         enc.forward(t, act)

@@ -203,7 +203,9 @@ fn the_rig_blob_reads_the_video_tracked_string() {
     );
     let v: serde_json::Value = serde_json::from_str(json.lines().next().unwrap()).unwrap();
     let l = v["params"][0].as_f64().unwrap();
-    assert!((l / 1.0609 - 1.0).abs() < 0.02, "{l}");
+    // g / w0^2 from the swing period of the same import (`koopman
+    // diagnose --g 9.81`); the lab-check's 2% at the end.
+    assert!((l / 1.0613 - 1.0).abs() < 0.02, "{l}");
     assert_eq!(v["trust"], "trusted", "{v}");
     assert_eq!(v["param_names"][1], "viscous");
 }

@@ -146,7 +146,9 @@ pub(crate) fn unit_lower_inverse(l: &LatentSquare) -> LatentSquare {
 #[inline(always)]
 fn lower_rows<const W: usize>(x: &mut LatentSquare, l: &LatentSquare, from: usize) {
     for i in from..from + 4 {
-        let (done, rest) = x.split_at_mut(i);
+        let Some((done, rest)) = x.split_at_mut_checked(i) else {
+            return;
+        };
         let (Some(xi), Some(lrow)) = (rest.first_mut(), l.get(i)) else {
             return;
         };

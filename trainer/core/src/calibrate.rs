@@ -617,6 +617,10 @@ pub fn calibrate(
         ((qs.len() as f64 + 1.0) * cfg.range_alpha / 2.0).floor() as usize,
     );
     let hi = conformal(&mut qs, 1.0 - cfg.range_alpha / 2.0);
+    anyhow::ensure!(
+        cfg.range_margin.is_some() || !cfg.range_fixed,
+        "calibration: a fixed range needs a margin (range_margin)"
+    );
     let (lo, hi) = match cfg.range_margin {
         Some(m) => {
             let [lo_l, hi_l] = spec.train_range;
@@ -625,10 +629,13 @@ pub fn calibrate(
                 f64::from(spec.coordinate((f64::from(hi_l) * (1.0 + m)) as f32)),
             ];
             let (end_lo, end_hi) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
-            if cfg.range_fixed {
+            // Held within the widened lengths; fixed to them, the
+            // held-out estimates must still reach into them.
+            let held = (lo.max(end_lo), hi.min(end_hi));
+            if cfg.range_fixed && held.0 <= held.1 {
                 (end_lo, end_hi)
             } else {
-                (lo.max(end_lo), hi.min(end_hi))
+                held
             }
         }
         None => (lo, hi),

@@ -11,12 +11,12 @@
 
 use serde::Serialize;
 
-use super::score::RolloutScore;
+use super::score::{RolloutScore, lengths_of};
 use super::table1::{Goal, IN_DISTRIBUTION, length_key, paper_row};
 
 /// The accuracy the family aims at: every in-range rollout's length
 /// within 3%.
-pub const ACCURATE: f64 = 0.03;
+pub const ACCURATE: f64 = trainer_core::protocol::DRAWN_ACCURACY;
 
 /// Smallest, mean and largest of the length estimates at one length.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -74,6 +74,9 @@ pub struct Row {
 pub struct Section {
     /// The blob scored.
     pub blob: String,
+    /// Its training lengths, as its sidecar's config says (e.g. "lengths
+    /// drawn uniformly from [2, 5]").
+    pub trained: String,
     /// Per length.
     pub rows: Vec<Row>,
     /// Every rollout.
@@ -84,11 +87,12 @@ pub struct Section {
 
 impl Section {
     /// From the family's scores on the test set.
-    pub fn new(blob: String, rollouts: Vec<RolloutScore>) -> Section {
+    pub fn new(blob: String, trained: String, rollouts: Vec<RolloutScore>) -> Section {
         let rows = rows(&rollouts);
         let goals = goals(&rows);
         Section {
             blob,
+            trained,
             rows,
             rollouts,
             goals,
@@ -96,20 +100,9 @@ impl Section {
     }
 }
 
-/// The lengths of `scores`, in order of first appearance.
-fn lengths(scores: &[RolloutScore]) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::new();
-    for s in scores {
-        if !out.contains(&s.length) {
-            out.push(s.length);
-        }
-    }
-    out
-}
-
 /// Per-length rows of the family's scores.
 pub fn rows(scores: &[RolloutScore]) -> Vec<Row> {
-    lengths(scores)
+    lengths_of(scores)
         .into_iter()
         .filter_map(|l| {
             let v: Vec<&RolloutScore> = scores.iter().filter(|s| s.length == l).collect();
@@ -184,8 +177,8 @@ fn mse(v: f64) -> String {
 /// hold the MLP's estimates too where it was scored).
 pub fn markdown(section: &Section, klm: &[RolloutScore]) -> String {
     let mut s = format!(
-        "\nThe bilinear family (`{}`, `docs/bilinear.md`), trained on lengths drawn uniformly from [2, 5] (the KLM's row: the paper's two, 2 and 5). Estimated and simulated as the KLM is.\n\n",
-        section.blob
+        "\nThe bilinear family (`{}`, `docs/bilinear.md`), trained on {} (the KLM: the paper's two, 2 and 5). Estimated and simulated as the KLM is.\n\n",
+        section.blob, section.trained
     );
     s.push_str("| L | bilinear | bilinear, true L | bilinear sigma | L estimate: mean (min-max) | within 3% | untrusted |\n");
     s.push_str("| --- | --- | --- | --- | --- | --- | --- |\n");
@@ -208,7 +201,7 @@ pub fn markdown(section: &Section, klm: &[RolloutScore]) -> String {
     }
     s.push_str("\nThe spread of each model's length estimate over the 10 rollouts of a length (smallest-largest):\n\n");
     s.push_str("| L | KLM | MLP | bilinear |\n| --- | --- | --- | --- |\n");
-    for l in lengths(klm) {
+    for l in lengths_of(klm) {
         let of = |f: &dyn Fn(&RolloutScore) -> Option<f64>, v: &[RolloutScore]| {
             let e: Vec<f64> = v.iter().filter(|s| s.length == l).filter_map(f).collect();
             Spread::range(Spread::of(&e))

@@ -12,18 +12,7 @@ use trainer_core::data::Dataset;
 use trainer_core::plot::{COLOURS, Curve, bounds, colour, curves, err, legend, length_lines, png};
 use trainer_core::protocol::{BURN_IN, DT};
 
-use super::score::RolloutScore;
-
-/// The distinct lengths of some scores, in order of first appearance.
-fn lengths_of(scores: &[RolloutScore]) -> Vec<f64> {
-    let mut v: Vec<f64> = Vec::new();
-    for s in scores {
-        if !v.contains(&s.length) {
-            v.push(s.length);
-        }
-    }
-    v
-}
+use super::score::{RolloutScore, lengths_of};
 
 /// Phase portraits of a data set, one colour per length (Figure 3).
 fn phase(

@@ -194,8 +194,16 @@ pub fn score_family(path: &Path, test: &Dataset) -> Result<family::Section> {
         "{}: not a blob of the bilinear family",
         path.display()
     );
+    let cfg = export::config_of(path);
+    let [lo, hi] = cfg.length_range();
+    let trained = if cfg.draw_lengths {
+        format!("lengths drawn uniformly from [{lo}, {hi}]")
+    } else {
+        format!("lengths {:?}", cfg.lengths)
+    };
     Ok(family::Section::new(
         path.display().to_string(),
+        trained,
         score::score(&model, test)?,
     ))
 }

@@ -159,15 +159,20 @@ pub fn score_baselines(
     Ok(())
 }
 
-/// Means per length, in order of first appearance.
-pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
-    let mut lengths: Vec<f64> = Vec::new();
+/// The distinct lengths of some scores, in order of first appearance.
+pub fn lengths_of(scores: &[RolloutScore]) -> Vec<f64> {
+    let mut v: Vec<f64> = Vec::new();
     for s in scores {
-        if !lengths.contains(&s.length) {
-            lengths.push(s.length);
+        if !v.contains(&s.length) {
+            v.push(s.length);
         }
     }
-    lengths
+    v
+}
+
+/// Means per length, in order of first appearance.
+pub fn by_length(scores: &[RolloutScore]) -> Vec<LengthScore> {
+    lengths_of(scores)
         .into_iter()
         .map(|l| {
             let v: Vec<&RolloutScore> = scores.iter().filter(|s| s.length == l).collect();

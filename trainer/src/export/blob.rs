@@ -187,13 +187,21 @@ mod tests {
 
     #[test]
     fn blob_round_trips_and_computes_what_burn_computes() {
+        // At every hidden width the estimator runs: the header records
+        // it and the arena is laid out for it.
+        for width in estimator::HIDDEN_WIDTHS {
+            round_trip(width);
+        }
+    }
+
+    fn round_trip(width: usize) {
         let bits = vec![0xffu8; map_bytes(&CalibrateConfig::default())];
         let device = Device::flex();
         device.seed(3);
-        let mut enc = Mlp::new(2, estimator::HIDDEN_DIM, LATENT_DIM, &device);
-        enc.l0 = asymmetric_linear(2, estimator::HIDDEN_DIM); // large but exact
+        let mut enc = Mlp::new(2, width, LATENT_DIM, &device);
+        enc.l0 = asymmetric_linear(2, width); // large but exact
         enc.l0.weight = enc.l0.weight.map(|w| w.mul_scalar(0.01));
-        let dec = Mlp::new(LATENT_DIM, estimator::HIDDEN_DIM, 2, &device);
+        let dec = Mlp::new(LATENT_DIM, width, 2, &device);
         // Latent rows arbitrary; parameter rows the identity, as the filter
         // requires (a blob without it is refused, checked at the end).
         let f: Vec<f32> = (0..AUG_DIM * AUG_DIM)
@@ -233,6 +241,12 @@ mod tests {
         let mut want = blob;
         want.body.pad = pad;
         assert_eq!(*back.blob(), want);
+        assert_eq!(usize::from(back.blob().header.hidden_dim), width);
+        assert_eq!(back.blob().layout().hidden, width);
+        assert_eq!(
+            back.blob().body.weights.len(),
+            back.blob().layout().arena_len(0)
+        );
         for (i, j) in [(0, 0), (3, 17), (17, 2), (17, 17)] {
             assert_eq!(back.f(i, j), f[i * AUG_DIM + j]);
         }

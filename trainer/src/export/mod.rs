@@ -433,8 +433,8 @@ pub fn calibration_for(cfg: &TrainConfig) -> CalibrateConfig {
         // The bilinear family on the protocol's rods, trained on lengths
         // drawn from the range: it reads the range's ends to within the
         // goal's 3%, so the range is the trained lengths widened by 3%.
-        None if cfg.model == ModelKind::Bilinear => CalibrateConfig {
-            range_margin: Some(0.03),
+        None if cfg.model == ModelKind::Bilinear && cfg.draw_lengths => CalibrateConfig {
+            range_margin: Some(trainer_core::protocol::DRAWN_ACCURACY),
             range_fixed: true,
             ..CalibrateConfig::default()
         },

@@ -326,6 +326,35 @@ mod tests {
     }
 
     #[test]
+    fn drawn_lengths_are_one_stratum_of_distinct_lengths() {
+        let cfg = TrainConfig {
+            rollouts_per_length: 6,
+            batch: 8,
+            draw_lengths: true,
+            ..TrainConfig::for_model(ModelKind::Bilinear)
+        };
+        let ds = training_data(&cfg).unwrap();
+        // As many rollouts as the grid 2, 5 would give, each its own
+        // length inside [2, 5].
+        let mut lengths: Vec<f64> = ds.sidecar.rollouts.iter().map(|m| m.length).collect();
+        assert_eq!(lengths.len(), 12);
+        assert!(
+            lengths.iter().all(|l| (2.0..=5.0).contains(l)),
+            "{lengths:?}"
+        );
+        lengths.dedup();
+        assert_eq!(lengths.len(), 12, "{lengths:?}");
+        // A batch draws from them all: coordinates inside [-1, 1], not the
+        // two ends of a grid.
+        let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg).unwrap();
+        let (_, p) = b.batch(&cfg, 0, &Device::flex());
+        let q: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
+        let q1: Vec<f32> = q.chunks(2).map(|c| c[0]).collect();
+        assert!(q1.iter().all(|v| v.abs() <= 1.0 + 1e-6), "{q1:?}");
+        assert!(q1.iter().any(|v| v.abs() < 0.99), "{q1:?}");
+    }
+
+    #[test]
     fn klm_batches_mix_lengths_and_cbm_batches_hold_one() {
         assert_eq!(batch_lengths(ModelKind::Klm, 0), [2.0, 5.0].repeat(4));
         assert_eq!(batch_lengths(ModelKind::Cbm, 0), [2.0; 8]);
