@@ -219,47 +219,37 @@ fn firmware_in_qemu_matches_the_host() {
     let mut worst: f32 = 0.0;
     let mut compared = 0;
     let mut reasons_seen = 0;
-    for (id, xs) in &rollouts {
-        // The firmware's order: on the gain schedule, then without it.
-        for (mode, mut est) in [
-            ("scheduled", Estimator::new(&model).at_trained_gravity()),
-            (
-                "recursive",
-                Estimator::without_schedule(&model).at_trained_gravity(),
-            ),
-        ] {
-            for x in xs {
-                let h = est.step(x).unwrap();
-                let line = steps.next().expect("fewer step lines than measurements");
-                let w: Vec<&str> = line.split_whitespace().collect();
-                assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
-                assert_eq!(w[2], mode, "{line}");
-                assert_eq!(w[3].parse::<u32>().unwrap(), h.t, "{line}");
-                let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
-                for (hex, hv) in w[4..10].iter().zip(host_vals) {
-                    let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
-                    let d = (fv - hv).abs();
-                    assert!(d <= tol(*hv), "{line}: firmware {fv} host {hv}");
-                    worst = worst.max(d);
-                    compared += 1;
-                }
-                assert_eq!(w[10], h.trust.word(), "{line}");
-                assert_eq!(w[11], reasons_token(&h.trust), "{line}");
-                reasons_seen += usize::from(!h.trust.reasons().is_empty());
-            }
-        }
-    }
-    // Then the string, through the rig blob (the extended filter).
+    // The firmware's order: each test rollout on the gain schedule, then
+    // without it; then the string, through the rig blob (the extended
+    // filter).
     let rig_bytes = rig_blob();
     let rig = Model::from_bytes(&rig_bytes).unwrap();
-    for (id, xs) in &rig_rollouts() {
-        let mut est = Estimator::new(&rig).at_trained_gravity();
+    let rig_data = rig_rollouts();
+    let mut runs: Vec<(u32, &str, Estimator<'_>, &[[f32; 2]])> = Vec::new();
+    for (id, xs) in &rollouts {
+        runs.push((
+            *id,
+            "scheduled",
+            Estimator::new(&model).at_trained_gravity(),
+            xs,
+        ));
+        runs.push((
+            *id,
+            "recursive",
+            Estimator::without_schedule(&model).at_trained_gravity(),
+            xs,
+        ));
+    }
+    for (id, xs) in &rig_data {
+        runs.push((*id, "rig", Estimator::new(&rig).at_trained_gravity(), xs));
+    }
+    for (id, mode, mut est, xs) in runs {
         for x in xs {
             let h = est.step(x).unwrap();
             let line = steps.next().expect("fewer step lines than measurements");
             let w: Vec<&str> = line.split_whitespace().collect();
-            assert_eq!(w[1].parse::<u32>().unwrap(), *id, "{line}");
-            assert_eq!(w[2], "rig", "{line}");
+            assert_eq!(w[1].parse::<u32>().unwrap(), id, "{line}");
+            assert_eq!(w[2], mode, "{line}");
             assert_eq!(w[3].parse::<u32>().unwrap(), h.t, "{line}");
             let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
             for (hex, hv) in w[4..10].iter().zip(host_vals) {
@@ -271,6 +261,7 @@ fn firmware_in_qemu_matches_the_host() {
             }
             assert_eq!(w[10], h.trust.word(), "{line}");
             assert_eq!(w[11], reasons_token(&h.trust), "{line}");
+            reasons_seen += usize::from(!h.trust.reasons().is_empty());
         }
     }
     assert!(steps.next().is_none(), "more step lines than measurements");

@@ -38,7 +38,8 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use burn::tensor::{Device, Tensor, TensorData};
-use criterion::{Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput};
 use estimator::{Estimator, Latent, Model, State};
 use trainer::learn::model::Mlp;
 use trainer_core::bench::{rig_window, window as bench_window};
@@ -51,6 +52,31 @@ fn shipped(name: &str) -> Vec<u8> {
         .join("../weights")
         .join(name);
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// A criterion group with this bench's settings: per step over a window.
+fn group<'c>(c: &'c mut Criterion, name: &str) -> BenchmarkGroup<'c, WallTime> {
+    let mut g = c.benchmark_group(name);
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(3));
+    g.throughput(Throughput::Elements(WINDOW as u64));
+    g
+}
+
+/// Burn's forward pass through the blob's encoder architecture (its
+/// hidden width and activation; random weights: burn's time does not
+/// depend on them), flex CPU backend, a batch of one.
+fn burn_encoder(model: &Model<'_>) -> impl Fn(&State) -> Vec<f32> + use<> {
+    let device = Device::flex();
+    let act = model.blob().body.activation;
+    let enc = Mlp::new(2, model.blob().layout().hidden, 16, &device);
+    move |x: &State| {
+        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
+        enc.forward(t, act)
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 output")
+    }
 }
 
 /// The rig blob's group and its peers'.
@@ -69,10 +95,7 @@ fn bench_rig(c: &mut Criterion) {
         warm.step(x).expect("the rig blob reads its own string");
     }
 
-    let mut g = c.benchmark_group("rig");
-    g.warm_up_time(Duration::from_secs(1));
-    g.measurement_time(Duration::from_secs(3));
-    g.throughput(Throughput::Elements(WINDOW as u64));
+    let mut g = group(c, "rig");
     g.bench_function("step", |b| {
         b.iter(|| {
             let mut e = warm.clone();
@@ -98,20 +121,8 @@ fn bench_rig(c: &mut Criterion) {
     });
     g.finish();
 
-    let device = Device::flex();
-    let act = model.blob().body.activation;
-    let enc = Mlp::new(2, model.blob().layout().hidden, 16, &device);
-    let burn_encode = |x: &State| -> Vec<f32> {
-        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
-        enc.forward(t, act)
-            .into_data()
-            .try_to_vec::<f32>()
-            .expect("f32 output")
-    };
-    let mut g = c.benchmark_group("rig_peer");
-    g.warm_up_time(Duration::from_secs(1));
-    g.measurement_time(Duration::from_secs(3));
-    g.throughput(Throughput::Elements(WINDOW as u64));
+    let burn_encode = burn_encoder(&model);
+    let mut g = group(c, "rig_peer");
     g.bench_function("burn_encode", |b| {
         b.iter(|| {
             for x in xs {
@@ -151,10 +162,7 @@ fn bench(c: &mut Criterion) {
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
 
-    let mut g = c.benchmark_group("estimator");
-    g.warm_up_time(Duration::from_secs(1));
-    g.measurement_time(Duration::from_secs(3));
-    g.throughput(Throughput::Elements(WINDOW as u64));
+    let mut g = group(c, "estimator");
     g.bench_function("step", |b| {
         let mut est = Estimator::new(&model);
         b.iter(|| {
@@ -217,20 +225,8 @@ fn bench(c: &mut Criterion) {
     });
     g.finish();
 
-    let device = Device::flex();
-    let act = model.blob().body.activation;
-    let enc = Mlp::new(2, model.blob().layout().hidden, 16, &device);
-    let burn_encode = |x: &State| -> Vec<f32> {
-        let t = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device);
-        enc.forward(t, act)
-            .into_data()
-            .try_to_vec::<f32>()
-            .expect("f32 output")
-    };
-    let mut g = c.benchmark_group("peer");
-    g.warm_up_time(Duration::from_secs(1));
-    g.measurement_time(Duration::from_secs(3));
-    g.throughput(Throughput::Elements(WINDOW as u64));
+    let burn_encode = burn_encoder(&model);
+    let mut g = group(c, "peer");
     g.bench_function("burn_encode", |b| {
         b.iter(|| {
             for x in &xs {

@@ -12,7 +12,7 @@
 use serde::Serialize;
 
 use super::score::{RolloutScore, lengths_of};
-use super::table1::{Goal, IN_DISTRIBUTION, length_key, paper_row};
+use super::table1::{Goal, IN_DISTRIBUTION, goals_markdown, length_key, paper_row};
 
 /// The accuracy the family aims at: every in-range rollout's length
 /// within 3%.
@@ -214,15 +214,7 @@ pub fn markdown(section: &Section, klm: &[RolloutScore]) -> String {
             of(&|r| Some(f64::from(r.length_est)), &section.rollouts),
         ));
     }
-    s.push_str("\n| goal | met | figures |\n| --- | --- | --- |\n");
-    for g in &section.goals {
-        s.push_str(&format!(
-            "| {} | {} | {} |\n",
-            g.goal,
-            if g.met { "yes" } else { "**no**" },
-            g.figures
-        ));
-    }
+    s.push_str(&goals_markdown(&section.goals));
     s
 }
 

@@ -301,8 +301,14 @@ pub fn markdown(rows: &[Row], seeds: &[u64], auc: &[f64], command: &str) -> Stri
             fmt_cell(Some(c), n, 3)
         ));
     }
-    s.push_str("\n| goal | met | figures |\n| --- | --- | --- |\n");
-    for g in goals(rows) {
+    s.push_str(&goals_markdown(&goals(rows)));
+    s
+}
+
+/// Goals as a markdown table (after a blank line).
+pub fn goals_markdown(goals: &[Goal]) -> String {
+    let mut s = String::from("\n| goal | met | figures |\n| --- | --- | --- |\n");
+    for g in goals {
         s.push_str(&format!(
             "| {} | {} | {} |\n",
             g.goal,
