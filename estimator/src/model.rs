@@ -177,6 +177,9 @@ pub struct Model<'a> {
     arena: &'a [f32],
     tail: Option<Tail<'a>>,
     nets: Nets<'a>,
+    /// Where the gain schedule starts in the arena (read every scheduled
+    /// step; set once from the blob's layout).
+    schedule_at: usize,
     ct: KoopmanColumns,
     /// `F_0, F_1, F_2, F_11` of a bilinear blob, in place.
     bilinear: Option<[&'a LatentRows; BILINEAR_BLOCKS]>,
@@ -313,6 +316,7 @@ impl<'a> Model<'a> {
             arena,
             tail,
             nets,
+            schedule_at: layout.schedule_at(),
             ct,
             bilinear,
         })
@@ -384,7 +388,7 @@ impl<'a> Model<'a> {
         if n == 0 || n > self.schedule_steps() {
             return None;
         }
-        let at = self.blob.layout().schedule_at() + (n as usize - 1) * SCHEDULE_STEP_LEN;
+        let at = self.schedule_at + (n as usize - 1) * SCHEDULE_STEP_LEN;
         let kt = rows::<LATENT_DIM, AUG_DIM>(self.arena, at).ok()?;
         let std = rows::<1, PARAM_DIM>(self.arena, at + LATENT_DIM * AUG_DIM)
             .ok()

@@ -79,6 +79,41 @@ fn burn_encoder(model: &Model<'_>) -> impl Fn(&State) -> Vec<f32> + use<> {
     }
 }
 
+/// The peers a user would reach for, on the same measurements: burn's
+/// forward pass through the blob's encoder architecture, the f64 filter
+/// on nalgebra (`trainer_core::reference`, extended for a bilinear blob),
+/// and the two together.
+fn peers(g: &mut BenchmarkGroup<'_, WallTime>, model: &Model<'_>, xs: &[State], zs: &[Latent]) {
+    let burn_encode = burn_encoder(model);
+    g.bench_function("burn_encode", |b| {
+        b.iter(|| {
+            for x in xs {
+                black_box(burn_encode(black_box(x)));
+            }
+        })
+    });
+    g.bench_function("f64_filter", |b| {
+        b.iter(|| {
+            let mut r = Reference::new(model, &zs[0]);
+            for z in &zs[1..] {
+                r.step(black_box(z));
+            }
+            black_box(r.g[16])
+        })
+    });
+    g.bench_function("step", |b| {
+        b.iter(|| {
+            let z0 = burn_encode(&model.normalise(&xs[0]));
+            let mut r = Reference::new(model, &z0);
+            for x in &xs[1..] {
+                let z = burn_encode(&model.normalise(x));
+                r.step(&z);
+            }
+            black_box(r.g[16])
+        })
+    });
+}
+
 /// The rig blob's group and its peers'.
 fn bench_rig(c: &mut Criterion) {
     let bytes = shipped("rig.kkf");
@@ -121,35 +156,8 @@ fn bench_rig(c: &mut Criterion) {
     });
     g.finish();
 
-    let burn_encode = burn_encoder(&model);
     let mut g = group(c, "rig_peer");
-    g.bench_function("burn_encode", |b| {
-        b.iter(|| {
-            for x in xs {
-                black_box(burn_encode(black_box(x)));
-            }
-        })
-    });
-    g.bench_function("f64_filter", |b| {
-        b.iter(|| {
-            let mut r = Reference::new(&model, &zs[0]);
-            for z in &zs[1..] {
-                r.step(black_box(z));
-            }
-            black_box(r.g[16])
-        })
-    });
-    g.bench_function("step", |b| {
-        b.iter(|| {
-            let z0 = burn_encode(&model.normalise(&xs[0]));
-            let mut r = Reference::new(&model, &z0);
-            for x in &xs[1..] {
-                let z = burn_encode(&model.normalise(x));
-                r.step(&z);
-            }
-            black_box(r.g[16])
-        })
-    });
+    peers(&mut g, &model, xs, &zs);
     g.finish();
 }
 
@@ -225,24 +233,8 @@ fn bench(c: &mut Criterion) {
     });
     g.finish();
 
-    let burn_encode = burn_encoder(&model);
     let mut g = group(c, "peer");
-    g.bench_function("burn_encode", |b| {
-        b.iter(|| {
-            for x in &xs {
-                black_box(burn_encode(black_box(x)));
-            }
-        })
-    });
-    g.bench_function("f64_filter", |b| {
-        b.iter(|| {
-            let mut r = Reference::new(&model, &zs[0]);
-            for z in &zs[1..] {
-                r.step(black_box(z));
-            }
-            black_box(r.g[16])
-        })
-    });
+    peers(&mut g, &model, &xs, &zs);
     let ads = ads::Models::new(&model);
     g.bench_function("adskalman_filter", |b| {
         b.iter(|| {
@@ -253,17 +245,6 @@ fn bench(c: &mut Criterion) {
                 }
             }
             black_box(state)
-        })
-    });
-    g.bench_function("step", |b| {
-        b.iter(|| {
-            let z0 = burn_encode(&model.normalise(&xs[0]));
-            let mut r = Reference::new(&model, &z0);
-            for x in &xs[1..] {
-                let z = burn_encode(&model.normalise(x));
-                r.step(&z);
-            }
-            black_box(r.g[16])
         })
     });
     g.finish();

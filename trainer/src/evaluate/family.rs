@@ -224,20 +224,11 @@ mod tests {
 
     fn score(length: f64, est: f32, trusted: bool) -> RolloutScore {
         RolloutScore {
-            rollout: 0,
-            length,
             mse_true: 0.01,
             length_est: est,
-            length_std: 0.0,
-            sigma: 0.0,
             trusted,
             mse_klm: 0.02,
-            length_trace: vec![],
-            corrections: vec![],
-            mlp_est: None,
-            mse_mlp: None,
-            mse_cbm_one_shot: None,
-            mse_cbm_few_shot: None,
+            ..RolloutScore::at(length)
         }
     }
 

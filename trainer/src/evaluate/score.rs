@@ -46,6 +46,30 @@ pub struct RolloutScore {
     pub mse_cbm_few_shot: Option<f64>,
 }
 
+#[cfg(test)]
+impl RolloutScore {
+    /// A rollout of true length `length` with every score zero, trusted,
+    /// for tests to fill in what they look at.
+    pub(crate) fn at(length: f64) -> RolloutScore {
+        RolloutScore {
+            rollout: 0,
+            length,
+            mse_true: 0.0,
+            length_est: 0.0,
+            length_std: 0.0,
+            sigma: 0.0,
+            trusted: true,
+            mse_klm: 0.0,
+            length_trace: vec![],
+            corrections: vec![],
+            mlp_est: None,
+            mse_mlp: None,
+            mse_cbm_one_shot: None,
+            mse_cbm_few_shot: None,
+        }
+    }
+}
+
 /// Per-length means.
 #[derive(Debug, Clone, Serialize)]
 pub struct LengthScore {

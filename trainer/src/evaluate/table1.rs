@@ -325,20 +325,8 @@ mod tests {
 
     fn score(length: f64, sigma: f32) -> RolloutScore {
         RolloutScore {
-            rollout: 0,
-            length,
-            mse_true: 0.0,
-            length_est: 0.0,
-            length_std: 0.0,
             sigma,
-            trusted: true,
-            mse_klm: 0.0,
-            length_trace: vec![],
-            corrections: vec![],
-            mlp_est: None,
-            mse_mlp: None,
-            mse_cbm_one_shot: None,
-            mse_cbm_few_shot: None,
+            ..RolloutScore::at(length)
         }
     }
 
