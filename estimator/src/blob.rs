@@ -35,6 +35,12 @@
 //! ([`TrustSpec::max_rate_mismatch`]: measurements at another interval).
 //! `koopman calibrate` upgrades a format-8 blob.
 //!
+//! Format 10 added the consistency check's law
+//! ([`TrustSpec::nis_law`]): the mean normalised innovation is read
+//! against what held-out rollouts of the same length and swing give, so
+//! that noise on a small swing of a long pendulum is seen as well as on a
+//! short one's. `koopman calibrate` upgrades a format-9 blob.
+//!
 //! Format 7 added the largest unevenness of the swing the verdict trusts
 //! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
 //! that the envelope does not see.
@@ -109,7 +115,7 @@ use crate::{
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 9;
+pub const FORMAT_VERSION: u16 = 10;
 /// Number of dense layers in the encoder and in the decoder.
 pub const N_LAYERS: usize = 3;
 
@@ -702,9 +708,18 @@ pub struct TrustSpec<'a> {
     /// of its range lies from zero, as a share of it: see
     /// [`crate::trust`]; format 7).
     pub max_unevenness: f32,
-    /// The largest mean normalised innovation squared since the burn-in
-    /// that passes ([`crate::trust`]; format 9).
+    /// The largest consistency statistic that passes: the mean normalised
+    /// innovation squared since the burn-in, scaled by
+    /// [`TrustSpec::nis_law`] ([`crate::trust::consistency`]; format 9).
     pub max_nis: f32,
+    /// The exponents `[a, b]` of the consistency statistic's scaling: the
+    /// mean normalised innovation times `L^a / s^b`, with `L` the first
+    /// parameter read at the blob's gravity and `s` the widest swing
+    /// (rad). Fitted at calibration to how the mean grows with the length
+    /// and the swing in held-out rollouts (a short pendulum and a wide
+    /// swing leave larger innovations for the same noise); `[0, 0]` reads
+    /// the plain mean (format 10).
+    pub nis_law: [f32; 2],
     /// The largest departure from 1 of the angle's change over the change
     /// the measured rates predict that passes ([`crate::trust`]; format
     /// 9).
@@ -722,6 +737,7 @@ impl TrustSpec<'_> {
             && self.min_swing >= 0.0
             && self.max_unevenness >= 0.0
             && self.max_nis >= 0.0
+            && self.nis_law.iter().all(|v| v.is_finite())
             && self.max_rate_mismatch >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);

@@ -36,22 +36,34 @@
 //!   bottom of its training range, and nothing else in the verdict sees
 //!   it (the states lie inside the envelope).
 //! - [`Reason::UnevenSwing`]: the swing does not reach the same angle on
-//!   both sides (its unevenness, [`SwingWindow`], above the blob's
-//!   largest). The model is conservative and centred: friction lowers
-//!   each turning point, a torque or a sensor offset moves them all one
-//!   way. Weak friction leaves the states inside the envelope while the
-//!   length reads 20-30% long; the turning points show it within one
-//!   swing.
+//!   both sides: the largest unevenness ([`SwingWindow`]) read since the
+//!   start while the swing was at least the smallest trusted
+//!   ([`TrustSpec::min_swing`](crate::blob::TrustSpec::min_swing)), above
+//!   the blob's largest. The model is conservative and centred: friction
+//!   lowers each turning point, a torque or a sensor offset moves them
+//!   all one way. Weak friction leaves the states inside the envelope
+//!   while the length reads 20-30% long; the turning points show it
+//!   within one swing. The largest, not the latest: the estimate holds
+//!   what the uneven swings told it after friction has stopped the
+//!   pendulum, where nothing is uneven any more (a swing below the
+//!   smallest trusted is left out: its unevenness is the tracking
+//!   noise's).
 //! - [`Reason::Inconsistent`]: the measurements disagree with the
 //!   model's predictions more than in held-out rollouts: the mean
 //!   normalised innovation squared since the burn-in ([`Consistency`],
 //!   where the filter forms `S^-1`: every update of the extended filter,
-//!   the linear filter's only without its gain schedule) above the blob's
-//!   largest, from the [`WINDOW`]-th update on (before it the mean rests
-//!   on a few updates; the calibration reads it from there too).
-//!   Noise heavier than trained, friction or a torque the model lacks, or
-//!   measurements fed at another interval than the blob's keep the
-//!   innovations large while the states stay on the envelope.
+//!   the linear filter's only without its gain schedule), scaled by the
+//!   blob's law ([`consistency`]: times `L^a / s^b` for the length `L`
+//!   and the widest swing `s`), above the blob's largest, from the
+//!   [`WINDOW`]-th update on (before it the mean rests on a few updates;
+//!   the calibration reads it from there too). Noise heavier than
+//!   trained, friction or a torque the model lacks, or measurements fed
+//!   at another interval than the blob's keep the innovations large
+//!   while the states stay on the envelope. The scaling matters where
+//!   one blob spans a decade of lengths and swings: the model's own
+//!   error grows with the swing and the frequency, and a bound set by a
+//!   short pendulum's wide swing would pass a long one's small swing
+//!   drowned in noise.
 //! - [`Reason::RateMismatch`]: the measured rate does not match the
 //!   angle's change over the blob's interval ([`Kinematics`]: the
 //!   least-squares ratio of each step's change of `theta` to the change
@@ -341,8 +353,8 @@ impl Block {
 
 /// The swing over the last [`WINDOW`] to 2 [`WINDOW`] measurements, from
 /// two blocks' extremes (the block being filled and the one before it),
-/// with eleven floats of state (ten for the two blocks, one for the
-/// widest swing so far):
+/// with twelve floats of state (ten for the two blocks, one for the
+/// widest swing so far, one for the largest unevenness):
 /// - its size: half the range of `theta` (largest less smallest), so that
 ///   a decaying swing is seen decaying and a sensor offset does not
 ///   change it;
@@ -364,6 +376,9 @@ pub(crate) struct SwingWindow {
     n: u16,
     /// The widest swing read so far (0 before any).
     widest: f32,
+    /// The largest unevenness read so far where the swing was wide
+    /// enough ([`SwingWindow::remember_unevenness`]).
+    most_uneven: Option<f32>,
 }
 
 impl SwingWindow {
@@ -417,6 +432,23 @@ impl SwingWindow {
         Some((0.5 * range, uneven))
     }
 
+    /// Keeps the latest unevenness if it is the largest so far and the
+    /// latest swing is at least `min_swing` (below it the unevenness is
+    /// the tracking noise's).
+    pub fn remember_unevenness(&mut self, min_swing: f32) {
+        if let Some((swing, Some(u))) = self.read() {
+            if swing >= min_swing {
+                self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
+            }
+        }
+    }
+
+    /// The largest unevenness remembered ([`SwingWindow::remember_unevenness`];
+    /// `None` before any).
+    pub fn most_uneven(&self) -> Option<f32> {
+        self.most_uneven
+    }
+
     /// The swing alone ([`SwingWindow::read`]).
     #[cfg(test)]
     pub fn swing(&self) -> Option<f32> {
@@ -453,6 +485,22 @@ impl Consistency {
     pub fn mean(&self) -> Option<f32> {
         (self.n > 0).then_some(self.mean)
     }
+}
+
+/// The consistency check's statistic: the mean normalised innovation
+/// squared `nis`, times `length^a / swing^b` for the blob's law `[a, b]`
+/// ([`TrustSpec::nis_law`](crate::blob::TrustSpec::nis_law)); the mean
+/// itself, bit for bit, for the law `[0, 0]`. The length and the swing
+/// are floored at `1e-6` (a length that is not positive fails the
+/// physical check anyway; no swing measured reads as none). The one
+/// definition: the estimator's check and the calibration read it.
+pub fn consistency(nis: f32, length: f32, swing: f32, law: [f32; 2]) -> f32 {
+    let [a, b] = law;
+    if a == 0.0 && b == 0.0 {
+        return nis;
+    }
+    let floor = |v: f32| if v > 1e-6 { v } else { 1e-6 };
+    nis * libm::powf(floor(length), a) / libm::powf(floor(swing), b)
 }
 
 /// Whether the measured rate matches the angle's change: over consecutive

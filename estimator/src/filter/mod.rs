@@ -70,7 +70,7 @@ mod two_stage;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
-use crate::trust::{Checks, EnvelopeWindow, Spread, SwingWindow, Trust};
+use crate::trust::{self, Checks, EnvelopeWindow, Spread, SwingWindow, Trust};
 use crate::trust::{Consistency, Kinematics};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
 
@@ -128,6 +128,11 @@ pub struct StepOutput {
     /// heavier than trained, friction or a torque the model lacks, or
     /// measurements at another interval raise it.
     pub nis: Option<f32>,
+    /// What the consistency check reads: [`StepOutput::nis`] scaled by
+    /// the blob's law for the length and the widest swing
+    /// ([`crate::trust::consistency`]; the mean itself for a blob whose
+    /// law is `[0, 0]`).
+    pub consistency: Option<f32>,
     /// The change of the measured angle over the change the measured
     /// rates predict, `dt` apart, least squares since the start
     /// ([`crate::trust`]): 1 for measurements at the blob's interval with
@@ -139,10 +144,11 @@ pub struct StepOutput {
     /// [`WINDOW`](crate::WINDOW) measurements (NaN when only encoded
     /// measurements were given); what the swing check reads.
     pub swing: f32,
-    /// The latest swing's unevenness: how far the middle of the range of
-    /// `theta` over the last [`WINDOW`](crate::WINDOW) to 2
+    /// The swing's largest unevenness so far: how far the middle of the
+    /// range of `theta` over [`WINDOW`](crate::WINDOW) to 2
     /// [`WINDOW`](crate::WINDOW) measurements lies from zero, as a share
-    /// of its half (`None` where it is not measured: see
+    /// of its half, the largest read while that swing was at least the
+    /// blob's smallest trusted (`None` before one is measured: see
     /// [`crate::trust`]).
     pub unevenness: Option<f32>,
 }
@@ -533,6 +539,8 @@ impl<'m> Estimator<'m> {
         };
         let [theta, rate] = *raw;
         self.swing.push(theta, rate);
+        self.swing
+            .remember_unevenness(self.model.blob().body.trust.min_swing);
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
         let q = tail(&self.g).first().copied().filter(|_| settled);
@@ -581,9 +589,16 @@ impl<'m> Estimator<'m> {
         }
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
-        let unevenness = self.swing.read().and_then(|(_, u)| u);
+        let unevenness = self.swing.most_uneven();
         let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
         let swing = self.swing.widest();
+        // The length at the blob's gravity: what the model's own error
+        // follows (the declared gravity only rescales the report).
+        let length = specs.first().map_or(f32::NAN, |spec| spec.read(q0));
+        let consistency = self
+            .consistency
+            .mean()
+            .map(|m| trust::consistency(m, length, swing.unwrap_or(f32::NAN), calib.nis_law));
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,
@@ -597,7 +612,7 @@ impl<'m> Estimator<'m> {
             in_envelope: self.worst_off <= calib.envelope_max_off,
             // These two move both ways and are calibrated from the
             // WINDOW-th update on: before it they pass.
-            consistent: !full_window || self.consistency.mean().is_none_or(|m| m <= calib.max_nis),
+            consistent: !full_window || consistency.is_none_or(|c| c <= calib.max_nis),
             rate_ok: !full_window
                 || self
                     .kinematics
@@ -618,6 +633,7 @@ impl<'m> Estimator<'m> {
             trust: checks.verdict(),
             off_envelope: self.worst_off,
             nis: self.consistency.mean(),
+            consistency,
             rate_ratio: self.kinematics.ratio(),
             swing: swing.unwrap_or(f32::NAN),
             unevenness,

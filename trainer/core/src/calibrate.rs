@@ -28,8 +28,11 @@
 //!    swings, just above the largest whose length is
 //!    [`CalibrateConfig::accurate`] or more off after the window.
 //!    The largest trusted unevenness of the swing: the conformal quantile
-//!    at `1 - unevenness_alpha` of the larger of the two checkpoints', or
-//!    [`CalibrateConfig::unevenness_floor`], whichever is larger.
+//!    at `1 - unevenness_alpha` of the largest each rollout leaves (what
+//!    the device remembers, swings below the smallest trusted left out:
+//!    a second pass with that swing in place), or
+//!    [`unevenness_floor`] (the tracking noise at the smallest trusted
+//!    swing, for lab-like rollouts), whichever is larger.
 //!    The largest mean normalised innovation and the largest departure
 //!    of the rate ratio from 1 (format 9): conformal quantiles at
 //!    `1 - nis_alpha` and `1 - rate_alpha` of each rollout's largest
@@ -134,6 +137,13 @@ pub struct CalibrateConfig {
     /// Share of in-distribution rollouts the consistency check may flag.
     #[serde(default = "one_percent")]
     pub nis_alpha: f64,
+    /// Whether the consistency statistic is scaled by a law of the length
+    /// and the swing fitted on the calibration set ([`fit_nis_law`];
+    /// `false`: the plain mean, law `[0, 0]`). For a blob spanning a
+    /// decade of lengths and swings, whose own error moves the mean by
+    /// orders of magnitude across them.
+    #[serde(default)]
+    pub nis_law: bool,
     /// Held-out rollouts drawn lab-like (as a blob trained on
     /// `data::drawn` sets was trained), instead of the protocol's.
     pub lab: Option<LabHeldOut>,
@@ -181,6 +191,7 @@ impl Default for CalibrateConfig {
             unevenness_alpha: 0.01,
             unevenness_floor: 0.05,
             nis_alpha: one_percent(),
+            nis_law: false,
             rate_alpha: one_percent(),
             rate_floor: default_rate_floor(),
             lab: None,
@@ -223,6 +234,10 @@ pub struct Calibration {
     /// after the long run, where measured; every value passes where no
     /// held-out rollout measured one, as a linear blob on its schedule).
     pub max_nis: f32,
+    /// The consistency statistic's law `[a, b]` (the mean times
+    /// `L^a / s^b`; `[0, 0]` where not fitted).
+    #[serde(default)]
+    pub nis_law: [f32; 2],
     /// The calibration set's quantile at `1 - rate_alpha` of the rate
     /// ratio's departure from 1 (where measured).
     pub rate_quantile: f32,
@@ -352,6 +367,7 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         min_swing: 0.0,
         max_unevenness: f32::MAX,
         max_nis: f32::MAX,
+        nis_law: [0.0; 2],
         max_rate_mismatch: f32::MAX,
     }
 }
@@ -401,6 +417,23 @@ pub fn map_bytes(cfg: &CalibrateConfig) -> usize {
         .div_ceil(8)
 }
 
+/// The least largest unevenness for `cfg` once the smallest trusted swing
+/// is `min_swing` (rad): [`CalibrateConfig::unevenness_floor`], or for
+/// lab-like held-out rollouts, where larger, their largest tracking noise
+/// over that swing. The device remembers the largest unevenness of every
+/// swing down to the smallest trusted, and one turning point off by the
+/// noise moves the middle of the range by half of it and the half range
+/// by half of it: an unevenness of about `noise / swing` from the noise
+/// alone (0.138 for the rig blob: 0.01 rad over 0.072 rad).
+pub fn unevenness_floor(cfg: &CalibrateConfig, min_swing: f32) -> f64 {
+    let noise = cfg.lab.as_ref().map_or(0.0, |l| l.draw.noise[1]);
+    if min_swing > 0.0 {
+        cfg.unevenness_floor.max(noise / f64::from(min_swing))
+    } else {
+        cfg.unevenness_floor
+    }
+}
+
 /// The `k`-th smallest (1-based, clamped) of `v`.
 fn kth(v: &mut [f64], k: usize) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -434,13 +467,50 @@ fn checkpoints(m: &Model<'_>, xs: &[[f32; 2]]) -> Result<(StepOutput, StepOutput
     Ok((a, b))
 }
 
-/// The largest mean normalised innovation and departure of the rate
-/// ratio from 1 over the updates from the [`WINDOW`]-th on (where the
-/// device applies their checks; `None` where never measured).
-#[derive(Debug, Clone, Copy, Default)]
+/// What the consistency check reads at one update: the mean normalised
+/// innovation, the length at the blob's gravity and the widest swing
+/// (the arguments of [`estimator::trust::consistency`] before the law).
+type NisSample = [f32; 3];
+
+/// Over the updates from the [`WINDOW`]-th on (where the device applies
+/// their checks): the consistency check's inputs at each where measured,
+/// and the largest departure of the rate ratio from 1 (`None` where
+/// never measured).
+#[derive(Debug, Clone, Default)]
 struct Extremes {
-    nis: Option<f32>,
+    nis: Vec<NisSample>,
     rate_off: Option<f32>,
+}
+
+/// The consistency statistic's law `[a, b]` ([`TrustSpec::nis_law`]):
+/// the least-squares fit of `ln nis = c + (-a) ln L + b ln s` over every
+/// sample of every held-out rollout, so that `nis L^a / s^b` no longer
+/// moves with the length and the swing. Samples with a non-positive or
+/// non-finite value are left out; fewer than 3 left, or a singular fit,
+/// is an error.
+pub fn fit_nis_law<'s>(samples: impl Iterator<Item = &'s NisSample>) -> Result<[f32; 2]> {
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut aty = nalgebra::Vector3::<f64>::zeros();
+    let mut n = 0usize;
+    let ok = |v: f32| v.is_finite() && v > 0.0;
+    for [nis, length, swing] in samples.copied() {
+        if !(ok(nis) && ok(length) && ok(swing)) {
+            continue;
+        }
+        let x = nalgebra::Vector3::new(1.0, f64::from(length).ln(), f64::from(swing).ln());
+        ata += x * x.transpose();
+        aty += x * f64::from(nis).ln();
+        n += 1;
+    }
+    anyhow::ensure!(
+        n >= 3,
+        "calibration: {n} innovations to fit the consistency law on"
+    );
+    let c = ata
+        .try_inverse()
+        .context("calibration: the consistency law's fit is singular (one length or one swing)")?
+        * aty;
+    Ok([(-c[1]) as f32, c[2] as f32])
 }
 
 /// [`checkpoints`], and the [`Extremes`] over the run.
@@ -462,7 +532,9 @@ fn checkpoints_with_extremes(
             at_window = Some(out.clone());
         }
         if n + 1 >= WINDOW {
-            ext.nis = most(ext.nis, out.nis);
+            if let Some(v) = out.nis {
+                ext.nis.push([v, out.params[0], out.swing]);
+            }
             ext.rate_off = most(ext.rate_off, out.rate_ratio.map(|r| (r - 1.0).abs()));
         }
         last = Some(out);
@@ -568,8 +640,7 @@ pub fn calibrate(
     )?;
     let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
     let mut swings = vec![];
-    let mut uneven = vec![];
-    let mut nis = vec![];
+    let mut traces = vec![];
     let mut rate = vec![];
     // The effect's errors, where the blob declares one and the rollout
     // was drawn with its coefficient: (after the long run, after the
@@ -593,13 +664,9 @@ pub fn calibrate(
         swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
         off.push(f64::from(a.off_envelope.max(b.off_envelope)));
         // Not measured (no two turning points yet): passes.
-        let u = |o: &StepOutput| f64::from(o.unevenness.unwrap_or(0.0));
-        uneven.push(u(&a).max(u(&b)));
         // The largest over the run from the window on: what the device's
         // checks see.
-        if let Some(v) = ext.nis {
-            nis.push(f64::from(v));
-        }
+        traces.push(ext.nis);
         rate.push(f64::from(ext.rate_off.unwrap_or(0.0)));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
         err_long.push(f64::from((b.coordinate[0] - truth).abs()));
@@ -652,8 +719,36 @@ pub fn calibrate(
         std_cover(&mut e_long, &e_win, cfg.coverage)
     };
     let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
+    // The unevenness the device remembers counts only swings of at least
+    // the smallest trusted: the calibration set again, with it in place.
+    let mut swung = mapped;
+    swung.body.trust.min_swing = min_swing;
+    let swung_bytes = blob_bytes(&swung)?;
+    let m = Model::from_bytes(&swung_bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut uneven = Vec::with_capacity(cal.len());
+    for r in &cal {
+        // The largest so far: the end's (not measured: passes).
+        let (_, b) = checkpoints(&m, &r.xs)?;
+        uneven.push(f64::from(b.unevenness.unwrap_or(0.0)));
+    }
     let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
-    let max_unevenness = unevenness_quantile.max(cfg.unevenness_floor as f32);
+    let max_unevenness = unevenness_quantile.max(unevenness_floor(cfg, min_swing) as f32);
+    let nis_law = if cfg.nis_law {
+        fit_nis_law(traces.iter().flatten())?
+    } else {
+        [0.0; 2]
+    };
+    // Each rollout's largest statistic from the window on (none where
+    // never measured).
+    let mut nis: Vec<f64> = traces
+        .iter()
+        .filter_map(|t| {
+            t.iter()
+                .map(|&[v, l, s]| estimator::trust::consistency(v, l, s, nis_law))
+                .reduce(f32::max)
+        })
+        .map(f64::from)
+        .collect();
     let max_nis = if nis.is_empty() {
         f32::MAX
     } else {
@@ -673,6 +768,7 @@ pub fn calibrate(
         min_swing,
         max_unevenness,
         max_nis,
+        nis_law,
         max_rate_mismatch,
     };
     let bytes = blob_bytes(&calibrated)?;
@@ -706,6 +802,7 @@ pub fn calibrate(
         unevenness_quantile,
         max_unevenness,
         max_nis,
+        nis_law,
         rate_quantile,
         max_rate_mismatch,
         check,

@@ -1,7 +1,8 @@
 //! `koopman calibrate`: sets a blob's trust verdict on held-out rollouts
 //! (`trainer_core::calibrate`) and records how in the JSON beside it. A
 //! blob of an earlier format is upgraded, its model, filter and schedule
-//! kept byte for byte: format 8 (before the consistency check), 7 (before
+//! kept byte for byte: format 9 (before the consistency check's law), 8
+//! (before the consistency check), 7 (before
 //! the rig was recorded: every blob made before format 8 is a rod's, the
 //! protocol's) and 6 (before the unevenness check).
 
@@ -22,7 +23,7 @@ use trainer_core::io::write_atomic;
 /// figures in the JSON beside it.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The blob (format 9, or 6, 7 or 8 to upgrade).
+    /// The blob (format 10, or 6 to 9 to upgrade).
     blob: PathBuf,
     /// Output path (default: over the input).
     #[arg(long)]
@@ -97,15 +98,52 @@ impl<'a> TrustSpecV8<'a> {
             min_swing: self.min_swing,
             max_unevenness: self.max_unevenness,
             max_nis: f32::MAX,
+            nis_law: [0.0; 2],
             max_rate_mismatch: f32::MAX,
         }
     }
 }
 
-/// The body of format 8: the current one with format 8's trust section.
+/// The trust section of format 9: without `nis_law`.
 #[derive(Deserialize)]
 #[cfg_attr(test, derive(serde::Serialize))]
-struct BodyV8<'a> {
+struct TrustSpecV9<'a> {
+    #[serde(borrow)]
+    envelope: Envelope<'a>,
+    envelope_max_off: u16,
+    range: [f32; 2],
+    std_scale: [f32; PARAM_DIM],
+    std_floor: [f32; PARAM_DIM],
+    min_swing: f32,
+    max_unevenness: f32,
+    max_nis: f32,
+    max_rate_mismatch: f32,
+}
+
+impl<'a> TrustSpecV9<'a> {
+    /// The current section: the plain mean innovation, as format 9 read
+    /// it (until calibrated again).
+    fn current(self) -> TrustSpec<'a> {
+        TrustSpec {
+            envelope: self.envelope,
+            envelope_max_off: self.envelope_max_off,
+            range: self.range,
+            std_scale: self.std_scale,
+            std_floor: self.std_floor,
+            min_swing: self.min_swing,
+            max_unevenness: self.max_unevenness,
+            max_nis: self.max_nis,
+            nis_law: [0.0; 2],
+            max_rate_mismatch: self.max_rate_mismatch,
+        }
+    }
+}
+
+/// The body of formats 8 and 9: the current one with their trust section
+/// `T`.
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct BodyV8<'a, T> {
     dt: f32,
     g: f32,
     rig: Rig,
@@ -116,8 +154,7 @@ struct BodyV8<'a> {
     #[serde(borrow)]
     params: [ParamSpec<'a>; PARAM_DIM],
     filter: FilterSpec,
-    #[serde(borrow)]
-    trust: TrustSpecV8<'a>,
+    trust: T,
     #[serde(borrow)]
     _pad: &'a [u8],
     #[serde(borrow)]
@@ -126,10 +163,10 @@ struct BodyV8<'a> {
 
 #[derive(Deserialize)]
 #[cfg_attr(test, derive(serde::Serialize))]
-struct BlobV8<'a> {
+struct BlobV8<'a, T> {
     _header: Header,
     #[serde(borrow)]
-    body: BodyV8<'a>,
+    body: BodyV8<'a, T>,
 }
 
 /// The body of format 7: format 8's without `rig` and `family`.
@@ -163,13 +200,13 @@ struct BlobV7<'a> {
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
 /// The blob's bytes in the current format: as they are, or a blob of
-/// format 6, 7 or 8 upgraded (before 8 a rod's; format 6 with every
-/// unevenness trusted, every one before 9 with every mean innovation), to
+/// format 6 to 9 upgraded (before 8 a rod's; format 6 with every
+/// unevenness trusted, every one before 9 with every mean innovation,
+/// format 9 with the plain mean innovation, law `[0, 0]`), to
 /// be calibrated again by the caller.
 fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
-    let version = postcard::from_bytes::<Header>(bytes)
-        .ok()
-        .map(|h| h.version);
+    let header = postcard::from_bytes::<Header>(bytes).ok();
+    let version = header.map(|h| h.version);
     let unreadable = |e: postcard::Error| {
         anyhow::anyhow!(
             "{}: not a readable format-{} blob: {e}",
@@ -193,6 +230,7 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
                 min_swing: t.min_swing,
                 max_unevenness: f32::MAX,
                 max_nis: f32::MAX,
+                nis_law: [0.0; 2],
                 max_rate_mismatch: f32::MAX,
             };
             body(
@@ -223,24 +261,18 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
             )
         }
         Some(8) => {
-            let (old, rest) = postcard::take_from_bytes_crc32::<BlobV8>(bytes, CRC.digest())
-                .map_err(unreadable)?;
+            let (old, rest) =
+                postcard::take_from_bytes_crc32::<BlobV8<TrustSpecV8>>(bytes, CRC.digest())
+                    .map_err(unreadable)?;
             anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
-            let b = old.body;
-            Body {
-                dt: b.dt,
-                g: b.g,
-                rig: b.rig,
-                family: b.family,
-                activation: b.activation,
-                norm_mu: b.norm_mu,
-                norm_s: b.norm_s,
-                params: b.params,
-                filter: b.filter,
-                trust: b.trust.current(),
-                pad: &[],
-                weights: b.weights,
-            }
+            old.body.current(TrustSpecV8::current)
+        }
+        Some(9) => {
+            let (old, rest) =
+                postcard::take_from_bytes_crc32::<BlobV8<TrustSpecV9>>(bytes, CRC.digest())
+                    .map_err(unreadable)?;
+            anyhow::ensure!(rest.is_empty(), "{}: trailing bytes", path.display());
+            old.body.current(TrustSpecV9::current)
         }
         // Current, or broken in a way the reader names.
         _ => {
@@ -253,10 +285,32 @@ fn current_format(bytes: &[u8], path: &Path) -> Result<Vec<u8>> {
         path.display(),
         version.unwrap_or(0)
     );
-    blob_bytes(&Blob {
-        header: Header::CURRENT,
-        body,
-    })
+    // The old header's widths (a narrow blob stays narrow), this format.
+    let header = Header {
+        version: FORMAT_VERSION,
+        ..header.unwrap_or(Header::CURRENT)
+    };
+    blob_bytes(&Blob { header, body })
+}
+
+impl<'a, T> BodyV8<'a, T> {
+    /// The current body, its trust section made current by `trust`.
+    fn current(self, trust: impl FnOnce(T) -> TrustSpec<'a>) -> Body<'a> {
+        Body {
+            dt: self.dt,
+            g: self.g,
+            rig: self.rig,
+            family: self.family,
+            activation: self.activation,
+            norm_mu: self.norm_mu,
+            norm_s: self.norm_s,
+            params: self.params,
+            filter: self.filter,
+            trust: trust(self.trust),
+            pad: &[],
+            weights: self.weights,
+        }
+    }
 }
 
 /// A current body from an older blob's parts; every blob before format 8
@@ -313,7 +367,7 @@ pub fn run(a: Args) -> Result<()> {
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
     super::say(&format!(
-        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation at most {:.4e}, rate ratio within {:.3} of 1",
+        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1",
         out.display(),
         out_bytes.len(),
         report.envelope_max_off,
@@ -324,6 +378,8 @@ pub fn run(a: Args) -> Result<()> {
         report.std_floor,
         report.min_swing,
         report.max_unevenness,
+        report.nis_law[0],
+        report.nis_law[1],
         report.max_nis,
         report.max_rate_mismatch
     ))?;
@@ -394,13 +450,73 @@ mod tests {
     }
 
     /// `bytes` with format 9's two checks open (every mean innovation and
-    /// rate ratio passing): what an upgrade writes before it is calibrated
-    /// again.
+    /// rate ratio passing) and format 10's law `[0, 0]`: what an upgrade
+    /// writes before it is calibrated again.
     fn unchecked(bytes: &[u8]) -> Vec<u8> {
         let mut b = Blob::from_bytes(bytes).unwrap();
         b.body.trust.max_nis = f32::MAX;
+        b.body.trust.nis_law = [0.0; 2];
         b.body.trust.max_rate_mismatch = f32::MAX;
         blob_bytes(&b).unwrap()
+    }
+
+    /// The rig blob written back as format 9 (its trust section without
+    /// the consistency law) upgrades to the rig blob with the law `[0, 0]`
+    /// and every other threshold kept, byte for byte.
+    #[test]
+    fn a_format_9_blob_upgrades_with_the_plain_mean() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/rig.kkf");
+        let shipped = std::fs::read(&path).unwrap();
+        let blob = Blob::from_bytes(&shipped).unwrap();
+        let b = blob.body;
+        assert_ne!(b.trust.nis_law, [0.0; 2], "the rig blob's law is fitted");
+        let t = b.trust;
+        let old = BlobV8 {
+            // The rig blob's own widths (64): the upgrade keeps them.
+            _header: Header {
+                version: 9,
+                ..blob.header
+            },
+            body: BodyV8 {
+                dt: b.dt,
+                g: b.g,
+                rig: b.rig,
+                family: b.family,
+                activation: b.activation,
+                norm_mu: b.norm_mu,
+                norm_s: b.norm_s,
+                params: b.params,
+                filter: b.filter,
+                trust: TrustSpecV9 {
+                    envelope: t.envelope,
+                    envelope_max_off: t.envelope_max_off,
+                    range: t.range,
+                    std_scale: t.std_scale,
+                    std_floor: t.std_floor,
+                    min_swing: t.min_swing,
+                    max_unevenness: t.max_unevenness,
+                    max_nis: t.max_nis,
+                    max_rate_mismatch: t.max_rate_mismatch,
+                },
+                _pad: &[],
+                weights: b.weights,
+            },
+        };
+        let v9 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
+        assert!(Blob::from_bytes(&v9).is_err(), "format 9 read as current");
+        let mut want = Blob::from_bytes(&shipped).unwrap();
+        want.body.trust.nis_law = [0.0; 2];
+        let (got, want) = (
+            current_format(&v9, &path).unwrap(),
+            blob_bytes(&want).unwrap(),
+        );
+        let first = got.iter().zip(&want).position(|(a, b)| a != b);
+        assert!(
+            got == want,
+            "{} against {} bytes, first difference at {first:?}",
+            got.len(),
+            want.len()
+        );
     }
 
     /// The shipped blob written back as format 7 (its body without the

@@ -266,6 +266,7 @@ mod tests {
             trust,
             off_envelope: 0,
             nis: None,
+            consistency: None,
             rate_ratio: None,
             swing: 0.5,
             unevenness: None,
