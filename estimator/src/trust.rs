@@ -353,8 +353,9 @@ impl Block {
 
 /// The swing over the last [`WINDOW`] to 2 [`WINDOW`] measurements, from
 /// two blocks' extremes (the block being filled and the one before it),
-/// with twelve floats of state (ten for the two blocks, one for the
-/// widest swing so far, one for the largest unevenness):
+/// with thirteen floats of state (ten for the two blocks, one each for
+/// the widest swing so far, the swing over the last two full blocks and
+/// the largest unevenness):
 /// - its size: half the range of `theta` (largest less smallest), so that
 ///   a decaying swing is seen decaying and a sensor offset does not
 ///   change it;
@@ -379,6 +380,9 @@ pub(crate) struct SwingWindow {
     /// The largest unevenness read so far where the swing was wide
     /// enough ([`SwingWindow::remember_unevenness`]).
     most_uneven: Option<f32>,
+    /// The swing over the last two full blocks, read as the latter
+    /// closed (0 before one has).
+    closed: f32,
 }
 
 impl SwingWindow {
@@ -399,6 +403,8 @@ impl SwingWindow {
             self.current = Block::first(theta, rate);
             self.previous = self.current;
         } else if usize::from(self.n) >= WINDOW {
+            let w = self.current.merge(&self.previous);
+            self.closed = 0.5 * (w.hi[0] - w.lo[0]);
             self.previous = self.current;
             self.current = Block::first(theta, rate);
             self.n = 0;
@@ -430,6 +436,17 @@ impl SwingWindow {
         let range = w.hi[0] - w.lo[0];
         let uneven = (turns && range > 0.0).then(|| libm::fabsf(w.hi[0] + w.lo[0]) / range);
         Some((0.5 * range, uneven))
+    }
+
+    /// The recent swing: the larger of the latest ([`SwingWindow::read`])
+    /// and the one over the last two full blocks (`None` before any angle
+    /// was measured). Just after a block closes the latest spans
+    /// [`WINDOW`] measurements only, less than a period of a long
+    /// pendulum at a wide swing (the protocol's 5 m rod released at 2 rad
+    /// swings in about 97), and reads a steady swing a quarter small; the
+    /// two full blocks before it span 2 [`WINDOW`].
+    pub fn recent(&self) -> Option<f32> {
+        self.read().map(|(s, _)| s.max(self.closed))
     }
 
     /// Keeps the latest unevenness if it is the largest so far and the

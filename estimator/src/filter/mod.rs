@@ -151,6 +151,18 @@ pub struct StepOutput {
     /// blob's smallest trusted (`None` before one is measured: see
     /// [`crate::trust`]).
     pub unevenness: Option<f32>,
+    /// Whether the parameters, their standard deviations and the
+    /// coordinates are held: the recent swing (the half range of `theta`
+    /// over the last [`WINDOW`](crate::WINDOW) to 2
+    /// [`WINDOW`](crate::WINDOW) measurements, or over the two full
+    /// blocks of [`WINDOW`](crate::WINDOW) before them, whichever is
+    /// wider) is below the blob's
+    /// smallest trusted, and these are the filter's after the last
+    /// measurement whose swing was not. The filter runs on (a swing that
+    /// grows again is read from where it has got to); a swing never that
+    /// wide is reported as it is (and flagged
+    /// [`Reason::SmallSwing`](crate::trust::Reason::SmallSwing)).
+    pub held: bool,
 }
 
 /// The estimator: a fixed-size filter state over one model.
@@ -188,6 +200,11 @@ pub struct Estimator<'m> {
     /// The measured rate against the angle's change.
     kinematics: Kinematics,
     swing: SwingWindow,
+    /// The parameters' coordinates and the filter's standard deviations
+    /// of them after the latest measurement whose swing was at least the
+    /// blob's smallest trusted: what is reported while the swing is
+    /// smaller ([`StepOutput::held`]).
+    held: Option<([f32; PARAM_DIM], [f32; PARAM_DIM])>,
     /// Declared gravity over the blob's training gravity: what a parameter
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
     /// reads as, times its trained value (1 until declared).
@@ -219,6 +236,7 @@ impl<'m> Estimator<'m> {
             consistency: Consistency::default(),
             kinematics: Kinematics::default(),
             swing: SwingWindow::default(),
+            held: None,
             g_ratio: 1.0,
             g_known: !model
                 .blob()
@@ -468,6 +486,7 @@ impl<'m> Estimator<'m> {
             self.consistency = Consistency::default();
             self.kinematics = Kinematics::default();
             self.swing = SwingWindow::default();
+            self.held = None;
             self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
         }
@@ -539,8 +558,11 @@ impl<'m> Estimator<'m> {
         };
         let [theta, rate] = *raw;
         self.swing.push(theta, rate);
-        self.swing
-            .remember_unevenness(self.model.blob().body.trust.min_swing);
+        let min_swing = self.model.blob().body.trust.min_swing;
+        self.swing.remember_unevenness(min_swing);
+        if self.swing.recent().is_some_and(|s| s >= min_swing) {
+            self.held = Some((*tail(&self.g), self.param_std));
+        }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
         let q = tail(&self.g).first().copied().filter(|_| settled);
@@ -564,8 +586,13 @@ impl<'m> Estimator<'m> {
     fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
         let blob = self.model.blob();
         let calib = &blob.body.trust;
-        let coordinate = *tail(&self.g);
-        let coordinate_std = self.param_std;
+        // While the latest swing is below the smallest trusted, the
+        // estimate of the last swing that was not: a swing that small
+        // moves the filter by the model's error and the noise, not by
+        // what the length is.
+        let small = self.swing.recent().is_some_and(|s| s < calib.min_swing);
+        let held = self.held.filter(|_| small);
+        let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.g), self.param_std));
         let mut params = [0.0; PARAM_DIM];
         let mut param_std = [0.0; PARAM_DIM];
         let specs = &blob.body.params;
@@ -637,6 +664,7 @@ impl<'m> Estimator<'m> {
             rate_ratio: self.kinematics.ratio(),
             swing: swing.unwrap_or(f32::NAN),
             unevenness,
+            held: held.is_some(),
         }
     }
 }

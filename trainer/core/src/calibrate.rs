@@ -14,7 +14,10 @@
 //!    its cell in the bin of the coordinate the filter holds then.
 //! 2. **calibration** ([`CalibrateConfig::rollouts`], run for
 //!    [`CalibrateConfig::long_steps`]): the thresholds, as conformal
-//!    quantiles, read after [`WINDOW`] measurements and after the long run.
+//!    quantiles, read after [`WINDOW`] measurements and after the long run:
+//!    the smallest trusted swing first (on the window's estimates), then
+//!    every other with it in place, as the device runs (the estimate held
+//!    over a smaller swing, the unevenness remembered of wider ones).
 //!    The envelope's allowance is the `ceil((n + 1)(1 - a))`-th smallest
 //!    count of measurements off the map (`a` =
 //!    [`CalibrateConfig::envelope_alpha`]); the range is the band between
@@ -638,8 +641,25 @@ pub fn calibrate(
         cfg.seed + 1,
         cfg.lab.as_ref(),
     )?;
+    // The smallest trusted swing first, on the window's estimates (the
+    // long run's errors at small swings reach further up: a check set by
+    // them flags 11% of the check set rather than 7%, for 2 fewer wrong
+    // and trusted). Nothing is held within the window (the latest swing
+    // is the widest there), so the map's blob reads them as the device.
+    let mut swings = Vec::with_capacity(cal.len());
+    for r in &cal {
+        let (a, _) = checkpoints(&m, r.xs.get(..WINDOW).unwrap_or(&r.xs))?;
+        swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
+    }
+    let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
+    // Then every other threshold with it in place, as the device runs:
+    // the estimate held over a swing below it, the unevenness remembered
+    // of the swings above it.
+    mapped.body.trust.min_swing = min_swing;
+    let mapped_bytes = blob_bytes(&mapped)?;
+    let m = Model::from_bytes(&mapped_bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
     let (mut off, mut qs, mut err_long, mut win) = (vec![], vec![], vec![], vec![]);
-    let mut swings = vec![];
+    let mut uneven = vec![];
     let mut traces = vec![];
     let mut rate = vec![];
     // The effect's errors, where the blob declares one and the rollout
@@ -658,14 +678,10 @@ pub fn calibrate(
                 f64::from(a.coordinate_std[1]),
             ));
         }
-        // Set on the window's estimate: the long run's errors at small
-        // swings reach further up (a check set by them flags 11% of the
-        // check set rather than 7%, for 2 fewer wrong and trusted).
-        swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
         off.push(f64::from(a.off_envelope.max(b.off_envelope)));
-        // Not measured (no two turning points yet): passes.
-        // The largest over the run from the window on: what the device's
-        // checks see.
+        // The largest so far: the end's (not measured: passes).
+        uneven.push(f64::from(b.unevenness.unwrap_or(0.0)));
+        // Over the run from the window on: what the device's checks see.
         traces.push(ext.nis);
         rate.push(f64::from(ext.rate_off.unwrap_or(0.0)));
         qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
@@ -718,19 +734,6 @@ pub fn calibrate(
     } else {
         std_cover(&mut e_long, &e_win, cfg.coverage)
     };
-    let min_swing = min_swing(&mut swings, cfg.swing_share) as f32;
-    // The unevenness the device remembers counts only swings of at least
-    // the smallest trusted: the calibration set again, with it in place.
-    let mut swung = mapped;
-    swung.body.trust.min_swing = min_swing;
-    let swung_bytes = blob_bytes(&swung)?;
-    let m = Model::from_bytes(&swung_bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut uneven = Vec::with_capacity(cal.len());
-    for r in &cal {
-        // The largest so far: the end's (not measured: passes).
-        let (_, b) = checkpoints(&m, &r.xs)?;
-        uneven.push(f64::from(b.unevenness.unwrap_or(0.0)));
-    }
     let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
     let max_unevenness = unevenness_quantile.max(unevenness_floor(cfg, min_swing) as f32);
     let nis_law = if cfg.nis_law {

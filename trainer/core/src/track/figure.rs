@@ -270,6 +270,7 @@ mod tests {
             rate_ratio: None,
             swing: 0.5,
             unevenness: None,
+            held: false,
         }
     }
 
