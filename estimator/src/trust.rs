@@ -778,6 +778,79 @@ mod verdict_tests {
         assert_eq!(SwingWindow::default().unevenness(), None);
     }
 
+    /// The recent swing spans the two full blocks before the one being
+    /// filled: a steady swing of 0.5 rad at 97 samples a period (more than
+    /// a block) reads at least 0.49 at every measurement from the second
+    /// block on, where the latest alone dips to under 0.4 just after a
+    /// block closes (65 samples, two thirds of a period: the range misses
+    /// up to a third of the cycle around a turning point, and reads at
+    /// least (1 + cos 60 deg) / 2 = 0.75 of the swing).
+    #[test]
+    fn the_recent_swing_spans_two_full_blocks() {
+        let mut w = SwingWindow::default();
+        assert_eq!(w.recent(), None);
+        let step = 2.0 * core::f32::consts::PI / 97.0;
+        let mut least_latest = f32::INFINITY;
+        for k in 0..8 * WINDOW {
+            let ph = k as f32 * step;
+            w.push(0.5 * libm::cosf(ph), -0.5 * libm::sinf(ph));
+            if k >= 2 * WINDOW {
+                let recent = w.recent().unwrap();
+                assert!(recent >= 0.49, "{k}: {recent}");
+                least_latest = least_latest.min(w.swing().unwrap());
+            }
+        }
+        assert!(least_latest < 0.4, "{least_latest}");
+    }
+
+    /// The unevenness remembered: the largest read while the swing was at
+    /// least the smallest given, none of a smaller swing's (an offset of
+    /// 0.1 on a swing of 0.05 reads 2, left out at 0.072).
+    #[test]
+    fn the_largest_unevenness_of_wide_swings_is_remembered() {
+        let step = core::f32::consts::PI / 10.0;
+        let mut w = SwingWindow::default();
+        let mut push = |w: &mut SwingWindow, size: f32, offset: f32, n: usize| {
+            for k in 0..n {
+                let ph = k as f32 * step;
+                w.push(offset + size * libm::cosf(ph), -size * libm::sinf(ph));
+                w.remember_unevenness(0.072);
+            }
+        };
+        assert_eq!(w.most_uneven(), None);
+        // About an offset of 0.02 on 0.5 rad: 0.04.
+        push(&mut w, 0.5, 0.02, 2 * WINDOW);
+        let first = w.most_uneven().unwrap();
+        assert!((first - 0.04).abs() < 1e-3, "{first}");
+        // Then centred: the largest stays.
+        push(&mut w, 0.5, 0.0, 2 * WINDOW);
+        assert_eq!(w.most_uneven(), Some(first));
+        // Then a swing of 0.05 about 0.1 (a pendulum stopped off-centre,
+        // noise on it): below the smallest trusted, not remembered.
+        push(&mut w, 0.05, 0.1, 4 * WINDOW);
+        assert_eq!(w.most_uneven(), Some(first));
+    }
+
+    /// The consistency statistic: the mean itself, bit for bit, for the
+    /// law `[0, 0]`; `nis L^a / s^b` otherwise; a non-positive or NaN
+    /// length or swing floored at 1e-6 (finite, never NaN).
+    #[test]
+    fn the_consistency_law_scales_the_mean() {
+        for v in [0.0, 1.0, 3.7e-3, 5.1e4] {
+            assert_eq!(
+                consistency(v, f32::NAN, -1.0, [0.0, 0.0]).to_bits(),
+                v.to_bits()
+            );
+        }
+        let c = consistency(100.0, 0.25, 0.5, [1.0, 2.0]);
+        assert!((c - 100.0 * 0.25 / 0.25).abs() < 1e-3, "{c}");
+        let c = consistency(100.0, 0.64, 0.1, [0.5, 1.0]);
+        assert!((c - 100.0 * 0.8 / 0.1).abs() < 1e-2, "{c}");
+        for (l, s) in [(f32::NAN, 0.1), (0.0, 0.1), (0.5, f32::NAN), (0.5, -1.0)] {
+            assert!(consistency(10.0, l, s, [0.75, 1.15]).is_finite());
+        }
+    }
+
     /// The mean of the normalised innovations: none before any, the mean
     /// after (1, 2, 3, 6 average 3).
     #[test]

@@ -683,3 +683,62 @@ fn the_worst_window_is_remembered_and_a_gap_breaks_the_rate_chain() {
         .unwrap();
     assert_eq!(before, after, "the pair across the gap was counted");
 }
+
+/// A swing that stops: a 0.5 m string swinging 0.3 rad for 300
+/// measurements, then at rest 0.01 rad off the vertical with 2 mrad of
+/// tracking jitter for 600 (friction has stopped it). Once the recent
+/// swing is below the rig blob's smallest trusted (0.072 rad), the
+/// estimate reported
+/// is the one after the last measurement of the wide swing, bit for bit,
+/// and says so (`held`), while the filter runs on; a reset forgets it.
+#[test]
+fn the_estimate_is_held_over_a_swing_too_small_to_read() {
+    use trainer_core::physics::{Pendulum, Rig};
+    let bytes = host_tests::rig_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let mut p = Pendulum::of(Rig::Simple, 0.5);
+    p.g = 9.81;
+    let dt = f64::from(m.blob().body.dt);
+    let mut xs: Vec<[f32; 2]> = p
+        .rollout([0.3, 0.0], 300, dt)
+        .iter()
+        .map(|x| [x[0] as f32, x[1] as f32])
+        .collect();
+    for k in 0..600 {
+        let jitter = 0.002 * (1.3 * k as f32).sin();
+        xs.push([0.01 + jitter, 0.0]);
+    }
+    let mut est = Estimator::new(&m).with_gravity(9.81).unwrap();
+    let mut last_wide = None;
+    let mut out = None;
+    for x in &xs {
+        let o = est.step(x).unwrap();
+        if !o.held {
+            last_wide = Some(o.clone());
+        }
+        out = Some(o);
+    }
+    let (out, wide) = (out.unwrap(), last_wide.unwrap());
+    assert!(out.held, "a pendulum at rest is not read");
+    // The recent swing reads the two full blocks before the one being
+    // filled: the wide swing leaves it within three blocks of stopping.
+    assert!(
+        (300..300 + 3 * WINDOW as u32).contains(&wide.t),
+        "held from {}",
+        wide.t
+    );
+    assert_eq!(out.params, wide.params);
+    assert_eq!(out.param_std, wide.param_std);
+    assert_eq!(out.coordinate, wide.coordinate);
+    // Read within 5% from the wide swing.
+    assert!(
+        (f64::from(out.params[0]) - 0.5).abs() < 0.05 * 0.5,
+        "{:?}",
+        out.params
+    );
+    // The filter ran on: its own coordinate is not the held one.
+    let q = est.mean()[estimator::LATENT_DIM];
+    assert_ne!(q, out.coordinate[0]);
+    est.reset();
+    assert!(!est.step(&xs[0]).unwrap().held);
+}

@@ -844,3 +844,64 @@ impl CheckFigures {
         self.wrong_trusted += usize::from(!right && out.trust.is_trusted());
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The law's fit recovers the exponents of samples that follow one
+    /// exactly (`nis = 3 L^-0.7 s^1.2` over lengths 0.1 to 1.5 m and
+    /// swings 0.05 to 1.4 rad: `a = 0.7`, `b = 1.2`, to 1e-4, the f32
+    /// rounding of the samples); samples it cannot take (not positive, not
+    /// finite) are left out; too few, or one length only, are refused.
+    #[test]
+    fn the_consistency_law_is_fitted_from_samples() {
+        let mut samples = vec![];
+        for i in 0..20 {
+            for j in 0..20 {
+                let l = 0.1 + 1.4 * i as f32 / 19.0;
+                let s = 0.05 + 1.35 * j as f32 / 19.0;
+                samples.push([3.0 * l.powf(-0.7) * s.powf(1.2), l, s]);
+            }
+        }
+        samples.push([f32::NAN, 1.0, 1.0]);
+        samples.push([1.0, -1.0, 1.0]);
+        let [a, b] = fit_nis_law(samples.iter()).unwrap();
+        assert!((a - 0.7).abs() < 1e-4 && (b - 1.2).abs() < 1e-4, "{a} {b}");
+        // The fitted law takes the length and the swing out.
+        let scaled: Vec<f32> = samples
+            .iter()
+            .take(400)
+            .map(|&[v, l, s]| estimator::trust::consistency(v, l, s, [a, b]))
+            .collect();
+        assert!(scaled.iter().all(|c| (c - 3.0).abs() < 1e-3), "{scaled:?}");
+        assert!(fit_nis_law([[1.0, 1.0, 1.0]; 2].iter()).is_err());
+        let one_length: Vec<NisSample> = (1..10).map(|k| [k as f32, 0.5, 0.1 * k as f32]).collect();
+        assert!(fit_nis_law(one_length.iter()).is_err());
+    }
+
+    /// The least largest unevenness: the configured floor for the
+    /// protocol's clean rollouts; for lab-like ones, the largest tracking
+    /// noise over the smallest trusted swing where that is larger (0.01
+    /// over 0.072 rad: 0.139), the floor where no swing is trusted less.
+    #[test]
+    fn the_unevenness_floor_is_the_noise_at_the_smallest_swing() {
+        let protocol = CalibrateConfig::default();
+        assert_eq!(unevenness_floor(&protocol, 0.072), 0.05);
+        let lab = CalibrateConfig {
+            lab: Some(LabHeldOut {
+                theta0: [0.03, 1.5],
+                effect: None,
+                draw: LabDraw {
+                    noise: [0.002, 0.01],
+                    ..LabDraw::default()
+                },
+            }),
+            ..CalibrateConfig::default()
+        };
+        let f = unevenness_floor(&lab, 0.072);
+        assert!((f - 0.01 / 0.072).abs() < 1e-6, "{f}");
+        assert_eq!(unevenness_floor(&lab, 0.0), 0.05);
+        assert_eq!(unevenness_floor(&lab, 1.0), 0.05);
+    }
+}

@@ -116,6 +116,7 @@ pub fn run(a: Args) -> Result<()> {
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
                 "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
                 "predicted": tracked.predicted, "off_envelope": out.off_envelope,
+                "held": out.held,
                 "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
                 "rig": rig, "length_label": rig.length_label(),
             });
@@ -138,6 +139,12 @@ pub fn run(a: Args) -> Result<()> {
                     format!(" ({})", reasons.join(", "))
                 }
             ))?;
+            if out.held {
+                super::say(&format!(
+                    "         (held from the last swing of at least {:.3} rad: the swing is smaller now)",
+                    body.trust.min_swing
+                ))?;
+            }
             if tracked.predicted > 0 {
                 super::say(&format!(
                     "         (gaps in the time stamps: {} steps predicted without a sample)",
