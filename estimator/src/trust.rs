@@ -453,10 +453,10 @@ impl SwingWindow {
     /// latest swing is at least `min_swing` (below it the unevenness is
     /// the tracking noise's).
     pub fn remember_unevenness(&mut self, min_swing: f32) {
-        if let Some((swing, Some(u))) = self.read() {
-            if swing >= min_swing {
-                self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
-            }
+        if let Some((swing, Some(u))) = self.read()
+            && swing >= min_swing
+        {
+            self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
         }
     }
 
@@ -810,7 +810,7 @@ mod verdict_tests {
     fn the_largest_unevenness_of_wide_swings_is_remembered() {
         let step = core::f32::consts::PI / 10.0;
         let mut w = SwingWindow::default();
-        let mut push = |w: &mut SwingWindow, size: f32, offset: f32, n: usize| {
+        let push = |w: &mut SwingWindow, size: f32, offset: f32, n: usize| {
             for k in 0..n {
                 let ph = k as f32 * step;
                 w.push(offset + size * libm::cosf(ph), -size * libm::sinf(ph));
