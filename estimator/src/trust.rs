@@ -353,9 +353,9 @@ impl Block {
 
 /// The swing over the last [`WINDOW`] to 2 [`WINDOW`] measurements, from
 /// two blocks' extremes (the block being filled and the one before it),
-/// with thirteen floats of state (ten for the two blocks, one each for
-/// the widest swing so far, the swing over the last two full blocks and
-/// the largest unevenness):
+/// with fourteen floats of state (ten for the two blocks, one each for
+/// the widest swing so far, the swing over the last two full blocks, the
+/// recent swing and the largest unevenness):
 /// - its size: half the range of `theta` (largest less smallest), so that
 ///   a decaying swing is seen decaying and a sensor offset does not
 ///   change it;
@@ -378,11 +378,13 @@ pub(crate) struct SwingWindow {
     /// The widest swing read so far (0 before any).
     widest: f32,
     /// The largest unevenness read so far where the swing was wide
-    /// enough ([`SwingWindow::remember_unevenness`]).
+    /// enough ([`SwingWindow::push`]).
     most_uneven: Option<f32>,
     /// The swing over the last two full blocks, read as the latter
     /// closed (0 before one has).
     closed: f32,
+    /// The recent swing ([`SwingWindow::recent`]).
+    recent: f32,
 }
 
 impl SwingWindow {
@@ -397,8 +399,12 @@ impl SwingWindow {
     /// 0.023 (half that) from it alone.
     pub const TURN: f32 = 0.3;
 
-    /// Records one measured angle and rate.
-    pub fn push(&mut self, theta: f32, rate: f32) {
+    /// Records one measured angle and rate, and from the one merge of the
+    /// two blocks: the widest swing so far, the recent swing
+    /// ([`SwingWindow::recent`]), and the unevenness if it is the largest
+    /// so far of a swing at least `min_swing` (below it the unevenness is
+    /// the tracking noise's: [`SwingWindow::most_uneven`]).
+    pub fn push(&mut self, theta: f32, rate: f32, min_swing: f32) {
         if self.n == 0 {
             self.current = Block::first(theta, rate);
             self.previous = self.current;
@@ -411,8 +417,14 @@ impl SwingWindow {
         }
         self.current.add(theta, rate);
         self.n += 1;
-        let w = self.current.merge(&self.previous);
-        self.widest = self.widest.max(0.5 * (w.hi[0] - w.lo[0]));
+        let (swing, uneven) = self.merged();
+        self.widest = self.widest.max(swing);
+        self.recent = swing.max(self.closed);
+        if let Some(u) = uneven
+            && swing >= min_swing
+        {
+            self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
+        }
     }
 
     /// The widest swing since the start: the largest half range of
@@ -423,45 +435,39 @@ impl SwingWindow {
         (self.n > 0).then_some(self.widest)
     }
 
-    /// The swing and its unevenness from one merge of the two blocks:
-    /// `None` before any angle was measured (a filter fed encoded
-    /// measurements only); the unevenness `None` also where there is no
-    /// range or an extreme is not a turning point.
-    pub fn read(&self) -> Option<(f32, Option<f32>)> {
-        if self.n == 0 {
-            return None;
-        }
+    /// The swing and its unevenness from one merge of the two blocks (the
+    /// unevenness `None` where there is no range or an extreme is not a
+    /// turning point). Before any angle, the blocks are empty: 0, `None`.
+    fn merged(&self) -> (f32, Option<f32>) {
         let w = self.current.merge(&self.previous);
         let turns = w.lo[1] <= Self::TURN * w.rate && w.hi[1] <= Self::TURN * w.rate;
         let range = w.hi[0] - w.lo[0];
         let uneven = (turns && range > 0.0).then(|| libm::fabsf(w.hi[0] + w.lo[0]) / range);
-        Some((0.5 * range, uneven))
+        (0.5 * range, uneven)
     }
 
-    /// The recent swing: the larger of the latest ([`SwingWindow::read`])
-    /// and the one over the last two full blocks (`None` before any angle
-    /// was measured). Just after a block closes the latest spans
-    /// [`WINDOW`] measurements only, less than a period of a long
-    /// pendulum at a wide swing (the protocol's 5 m rod released at 2 rad
-    /// swings in about 97), and reads a steady swing a quarter small; the
-    /// two full blocks before it span 2 [`WINDOW`].
+    /// The swing and its unevenness now ([`SwingWindow::merged`]): `None`
+    /// before any angle was measured (a filter fed encoded measurements
+    /// only).
+    #[cfg(test)]
+    pub fn read(&self) -> Option<(f32, Option<f32>)> {
+        (self.n > 0).then(|| self.merged())
+    }
+
+    /// The recent swing: the larger of the latest (over the last
+    /// [`WINDOW`] to 2 [`WINDOW`] measurements) and the one over the last
+    /// two full blocks (`None` before any angle was measured). Just after
+    /// a block closes the latest spans [`WINDOW`] measurements only, less
+    /// than a period of a long pendulum at a wide swing (the protocol's
+    /// 5 m rod released at 2 rad swings in about 97), and reads a steady
+    /// swing a quarter small; the two full blocks before it span 2
+    /// [`WINDOW`].
     pub fn recent(&self) -> Option<f32> {
-        self.read().map(|(s, _)| s.max(self.closed))
+        (self.n > 0).then_some(self.recent)
     }
 
-    /// Keeps the latest unevenness if it is the largest so far and the
-    /// latest swing is at least `min_swing` (below it the unevenness is
-    /// the tracking noise's).
-    pub fn remember_unevenness(&mut self, min_swing: f32) {
-        if let Some((swing, Some(u))) = self.read()
-            && swing >= min_swing
-        {
-            self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
-        }
-    }
-
-    /// The largest unevenness remembered ([`SwingWindow::remember_unevenness`];
-    /// `None` before any).
+    /// The largest unevenness of a swing at least the smallest trusted
+    /// ([`SwingWindow::push`]; `None` before any).
     pub fn most_uneven(&self) -> Option<f32> {
         self.most_uneven
     }
@@ -682,7 +688,7 @@ mod verdict_tests {
         // A swing of 1 about an offset of 0.3, for three windows.
         for k in 0..3 * WINDOW {
             let ph = k as f32 * 0.5;
-            w.push(0.3 + libm::cosf(ph), -libm::sinf(ph));
+            w.push(0.3 + libm::cosf(ph), -libm::sinf(ph), 0.0);
         }
         let a = w.swing().unwrap();
         assert!((a - 1.0).abs() < 1e-3, "{a}");
@@ -690,12 +696,12 @@ mod verdict_tests {
         // last big one, after two it has forgotten it.
         for k in 0..WINDOW {
             let ph = k as f32 * 0.5;
-            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph));
+            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph), 0.0);
         }
         assert!(w.swing().unwrap() > 0.5);
         for k in 0..WINDOW {
             let ph = k as f32 * 0.5;
-            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph));
+            w.push(0.2 * libm::cosf(ph), -0.2 * libm::sinf(ph), 0.0);
         }
         let a = w.swing().unwrap();
         assert!((a - 0.2).abs() < 1e-3, "{a}");
@@ -721,7 +727,7 @@ mod verdict_tests {
                 0.5 - 0.49 * (k - 5 * WINDOW) as f32 / (5 * WINDOW) as f32
             };
             let ph = k as f32 * core::f32::consts::PI / 10.0;
-            w.push(size * libm::cosf(ph), -size * libm::sinf(ph));
+            w.push(size * libm::cosf(ph), -size * libm::sinf(ph), 0.0);
             let now = w.widest().unwrap();
             assert!(now >= last, "the widest shrank at {k}: {last} -> {now}");
             last = now;
@@ -744,7 +750,7 @@ mod verdict_tests {
             let mut w = SwingWindow::default();
             for k in 0..n {
                 let [a, b] = f(k as f32 * step);
-                w.push(a, b);
+                w.push(a, b, 0.0);
             }
             w
         };
@@ -793,7 +799,7 @@ mod verdict_tests {
         let mut least_latest = f32::INFINITY;
         for k in 0..8 * WINDOW {
             let ph = k as f32 * step;
-            w.push(0.5 * libm::cosf(ph), -0.5 * libm::sinf(ph));
+            w.push(0.5 * libm::cosf(ph), -0.5 * libm::sinf(ph), 0.0);
             if k >= 2 * WINDOW {
                 let recent = w.recent().unwrap();
                 assert!(recent >= 0.49, "{k}: {recent}");
@@ -813,8 +819,11 @@ mod verdict_tests {
         let push = |w: &mut SwingWindow, size: f32, offset: f32, n: usize| {
             for k in 0..n {
                 let ph = k as f32 * step;
-                w.push(offset + size * libm::cosf(ph), -size * libm::sinf(ph));
-                w.remember_unevenness(0.072);
+                w.push(
+                    offset + size * libm::cosf(ph),
+                    -size * libm::sinf(ph),
+                    0.072,
+                );
             }
         };
         assert_eq!(w.most_uneven(), None);

@@ -557,9 +557,8 @@ impl<'m> Estimator<'m> {
             return;
         };
         let [theta, rate] = *raw;
-        self.swing.push(theta, rate);
         let min_swing = self.model.blob().body.trust.min_swing;
-        self.swing.remember_unevenness(min_swing);
+        self.swing.push(theta, rate, min_swing);
         if self.swing.recent().is_some_and(|s| s >= min_swing) {
             self.held = Some((*tail(&self.g), self.param_std));
         }
