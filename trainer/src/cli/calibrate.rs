@@ -104,18 +104,14 @@ impl<'a> TrustSpecV8<'a> {
     }
 }
 
-/// The trust section of format 9: without `nis_law`.
+/// The trust section of format 9: format 8's, then the two checks it
+/// added, without `nis_law` (postcard writes a nested struct as its
+/// fields in order, so this is format 9's layout).
 #[derive(Deserialize)]
 #[cfg_attr(test, derive(serde::Serialize))]
 struct TrustSpecV9<'a> {
     #[serde(borrow)]
-    envelope: Envelope<'a>,
-    envelope_max_off: u16,
-    range: [f32; 2],
-    std_scale: [f32; PARAM_DIM],
-    std_floor: [f32; PARAM_DIM],
-    min_swing: f32,
-    max_unevenness: f32,
+    v8: TrustSpecV8<'a>,
     max_nis: f32,
     max_rate_mismatch: f32,
 }
@@ -125,16 +121,9 @@ impl<'a> TrustSpecV9<'a> {
     /// it (until calibrated again).
     fn current(self) -> TrustSpec<'a> {
         TrustSpec {
-            envelope: self.envelope,
-            envelope_max_off: self.envelope_max_off,
-            range: self.range,
-            std_scale: self.std_scale,
-            std_floor: self.std_floor,
-            min_swing: self.min_swing,
-            max_unevenness: self.max_unevenness,
             max_nis: self.max_nis,
-            nis_law: [0.0; 2],
             max_rate_mismatch: self.max_rate_mismatch,
+            ..self.v8.current()
         }
     }
 }
@@ -415,19 +404,14 @@ mod tests {
         }
     }
 
-    /// The shipped blob written back as format 8 (its trust section
-    /// without `max_nis` and `max_rate_mismatch`) upgrades to the shipped
-    /// blob with those two checks open, byte for byte; `koopman
-    /// calibrate` then sets them.
-    #[test]
-    fn a_format_8_blob_upgrades_to_the_same_blob() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
-        let shipped = std::fs::read(&path).unwrap();
-        let b = Blob::from_bytes(&shipped).unwrap().body;
+    /// `blob` written back in the layout of formats 8 and 9 with the
+    /// header's `version` and the trust section `trust`.
+    fn written_back<T: serde::Serialize>(blob: &Blob<'_>, version: u16, trust: T) -> Vec<u8> {
+        let b = blob.body;
         let old = BlobV8 {
             _header: Header {
-                version: 8,
-                ..Header::CURRENT
+                version,
+                ..blob.header
             },
             body: BodyV8 {
                 dt: b.dt,
@@ -439,12 +423,24 @@ mod tests {
                 norm_s: b.norm_s,
                 params: b.params,
                 filter: b.filter,
-                trust: v8_trust(&b.trust),
+                trust,
                 _pad: &[],
                 weights: b.weights,
             },
         };
-        let v8 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
+        postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap()
+    }
+
+    /// The shipped blob written back as format 8 (its trust section
+    /// without `max_nis` and `max_rate_mismatch`) upgrades to the shipped
+    /// blob with those two checks open, byte for byte; `koopman
+    /// calibrate` then sets them.
+    #[test]
+    fn a_format_8_blob_upgrades_to_the_same_blob() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/pendulum.kkf");
+        let shipped = std::fs::read(&path).unwrap();
+        let blob = Blob::from_bytes(&shipped).unwrap();
+        let v8 = written_back(&blob, 8, v8_trust(&blob.body.trust));
         assert!(Blob::from_bytes(&v8).is_err(), "format 8 read as current");
         assert_eq!(current_format(&v8, &path).unwrap(), unchecked(&shipped));
     }
@@ -468,41 +464,18 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../weights/rig.kkf");
         let shipped = std::fs::read(&path).unwrap();
         let blob = Blob::from_bytes(&shipped).unwrap();
-        let b = blob.body;
-        assert_ne!(b.trust.nis_law, [0.0; 2], "the rig blob's law is fitted");
-        let t = b.trust;
-        let old = BlobV8 {
-            // The rig blob's own widths (64): the upgrade keeps them.
-            _header: Header {
-                version: 9,
-                ..blob.header
+        let t = blob.body.trust;
+        assert_ne!(t.nis_law, [0.0; 2], "the rig blob's law is fitted");
+        // The rig blob's own widths (64): the upgrade keeps them.
+        let v9 = written_back(
+            &blob,
+            9,
+            TrustSpecV9 {
+                v8: v8_trust(&t),
+                max_nis: t.max_nis,
+                max_rate_mismatch: t.max_rate_mismatch,
             },
-            body: BodyV8 {
-                dt: b.dt,
-                g: b.g,
-                rig: b.rig,
-                family: b.family,
-                activation: b.activation,
-                norm_mu: b.norm_mu,
-                norm_s: b.norm_s,
-                params: b.params,
-                filter: b.filter,
-                trust: TrustSpecV9 {
-                    envelope: t.envelope,
-                    envelope_max_off: t.envelope_max_off,
-                    range: t.range,
-                    std_scale: t.std_scale,
-                    std_floor: t.std_floor,
-                    min_swing: t.min_swing,
-                    max_unevenness: t.max_unevenness,
-                    max_nis: t.max_nis,
-                    max_rate_mismatch: t.max_rate_mismatch,
-                },
-                _pad: &[],
-                weights: b.weights,
-            },
-        };
-        let v9 = postcard::to_allocvec_crc32(&old, CRC.digest()).unwrap();
+        );
         assert!(Blob::from_bytes(&v9).is_err(), "format 9 read as current");
         let mut want = Blob::from_bytes(&shipped).unwrap();
         want.body.trust.nis_law = [0.0; 2];
