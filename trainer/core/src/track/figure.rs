@@ -1,7 +1,8 @@
 //! `estimate --plot`: one rollout's estimate over time. The length with
 //! its 2-std band, the effect coefficient when the blob has one, and the
-//! measured angle; the spans where the verdict is not `trusted` are
-//! shaded and labelled with their reasons.
+//! measured angle; the spans where the verdict is not `trusted`, or the
+//! estimate is held over a swing too small to read, are shaded and
+//! labelled with their reasons.
 
 use std::path::Path;
 
@@ -30,30 +31,51 @@ pub struct Trace<'a> {
 }
 
 /// A run of consecutive steps with the same verdict: `[from, to]` in s
-/// and the verdict's words (`pending`, or the untrusted reasons).
+/// and the verdict's words (`pending`, or the untrusted reasons, and
+/// [`HELD`] where the estimate is held).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Span {
     /// First and last time stamp, s.
     pub t: [f64; 2],
-    /// `pending`, or the reasons joined by `; ` (never `trusted`).
+    /// `pending`, or the reasons joined by `; `, with [`HELD`] after them
+    /// where the estimate is held (never `trusted` alone).
     pub label: String,
 }
 
-/// The verdict of one step in words, `None` when trusted.
-fn verdict_words(trust: &Trust) -> Option<String> {
-    match trust {
-        Trust::Trusted => None,
-        Trust::Pending => Some("pending".into()),
-        Trust::Untrusted(r) => Some(r.iter().map(|r| r.as_str()).collect::<Vec<_>>().join("; ")),
+/// The words of a held estimate ([`StepOutput::held`]).
+pub const HELD: &str = "held: swing too small to read";
+
+/// The verdict of one step in words, `None` when trusted and not held.
+fn step_words(out: &StepOutput) -> Option<String> {
+    let mut words: Vec<&str> = match &out.trust {
+        Trust::Trusted => vec![],
+        Trust::Pending => vec!["pending"],
+        Trust::Untrusted(r) => r.iter().map(|r| r.as_str()).collect(),
+    };
+    if out.held {
+        words.push(HELD);
+    }
+    (!words.is_empty()).then(|| words.join("; "))
+}
+
+/// A span's label as the key says it: the verdict first.
+fn key_words(label: &str) -> String {
+    if label == HELD {
+        format!("trusted, {HELD}")
+    } else if label.starts_with("pending") {
+        label.to_string()
+    } else {
+        format!("untrusted: {label}")
     }
 }
 
-/// The spans where the verdict is not `trusted`, each with one label.
-pub fn untrusted_spans(steps: &[(f64, StepOutput)]) -> Vec<Span> {
+/// The spans where the verdict is not `trusted` or the estimate is held,
+/// each with one label.
+pub fn marked_spans(steps: &[(f64, StepOutput)]) -> Vec<Span> {
     let mut spans: Vec<Span> = Vec::new();
     let mut open = false;
     for (t, out) in steps {
-        match (verdict_words(&out.trust), spans.last_mut()) {
+        match (step_words(out), spans.last_mut()) {
             (Some(label), Some(last)) if open && last.label == label => last.t[1] = *t,
             (Some(label), _) => {
                 spans.push(Span { t: [*t, *t], label });
@@ -107,7 +129,7 @@ where
 /// Draws the figure of `trace` into `path` (PNG).
 pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
     let panels = 2 + usize::from(trace.effect.is_some());
-    let spans = untrusted_spans(&trace.steps);
+    let spans = marked_spans(&trace.steps);
     let mut labels: Vec<String> = Vec::new();
     for s in &spans {
         if s.label != "pending" && !labels.contains(&s.label) {
@@ -226,11 +248,7 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
         "pending: no verdict yet; unshaded: trusted".to_string(),
         fill("pending", &labels),
     )];
-    key.extend(
-        labels
-            .iter()
-            .map(|l| (format!("untrusted: {l}"), fill(l, &labels))),
-    );
+    key.extend(labels.iter().map(|l| (key_words(l), fill(l, &labels))));
     if key.len() > KEY_LINES {
         let more = key.len() - (KEY_LINES - 1);
         key.truncate(KEY_LINES - 1);
@@ -290,7 +308,7 @@ mod tests {
         .enumerate()
         .map(|(k, v)| (k as f64, out(v)))
         .collect();
-        let spans = untrusted_spans(&steps);
+        let spans = marked_spans(&steps);
         assert_eq!(
             spans,
             vec![
@@ -301,6 +319,31 @@ mod tests {
                 Span {
                     t: [3.0, 4.0],
                     label: "swing below the accurate range".into()
+                },
+            ]
+        );
+        assert_eq!(
+            key_words("swing below the accurate range"),
+            "untrusted: swing below the accurate range"
+        );
+        assert_eq!(key_words(HELD), format!("trusted, {HELD}"));
+        // A trusted step whose estimate is held is marked; an untrusted
+        // one says both.
+        let mut held = out(Trust::Trusted);
+        held.held = true;
+        let mut both = out(Trust::Pending);
+        both.held = true;
+        let steps = vec![(0.0, out(Trust::Trusted)), (1.0, held), (2.0, both)];
+        assert_eq!(
+            marked_spans(&steps),
+            vec![
+                Span {
+                    t: [1.0, 1.0],
+                    label: HELD.into()
+                },
+                Span {
+                    t: [2.0, 2.0],
+                    label: format!("pending; {HELD}")
                 },
             ]
         );
