@@ -39,7 +39,11 @@
 //! ([`TrustSpec::nis_law`]): the mean normalised innovation is read
 //! against what held-out rollouts of the same length and swing give, so
 //! that noise on a small swing of a long pendulum is seen as well as on a
-//! short one's. `koopman calibrate` upgrades a format-9 blob.
+//! short one's. Two thresholds changed meaning with it:
+//! [`TrustSpec::max_unevenness`] bounds the largest unevenness remembered
+//! over every swing at least [`TrustSpec::min_swing`], not the latest,
+//! and below that swing the estimate is held. `koopman calibrate`
+//! upgrades a format-9 blob (law `[0, 0]`) and sets them again.
 //!
 //! Format 7 added the largest unevenness of the swing the verdict trusts
 //! ([`TrustSpec::max_unevenness`]): friction, a torque or a sensor offset
@@ -702,15 +706,20 @@ pub struct TrustSpec<'a> {
     /// `theta` over [`WINDOW`](crate::WINDOW) to 2 [`WINDOW`](crate::WINDOW)
     /// measurements, rad) that passes: below it held-out rollouts read
     /// the length off by the calibration's accuracy or more (20% for the
-    /// protocol blob, 5% for the rig blob; 0: every swing passes).
+    /// protocol blob, 5% for the rig blob; 0: every swing passes). From
+    /// format 10 on, a recent swing below it also holds the estimate
+    /// (`StepOutput::held`), and the unevenness of a smaller swing is not
+    /// remembered.
     pub min_swing: f32,
     /// The largest unevenness of the swing that passes (how far the middle
     /// of its range lies from zero, as a share of it: see
-    /// [`crate::trust`]; format 7).
+    /// [`crate::trust`]; format 7): from format 10 on, the largest
+    /// remembered over every swing at least [`TrustSpec::min_swing`].
     pub max_unevenness: f32,
     /// The largest consistency statistic that passes: the mean normalised
     /// innovation squared since the burn-in, scaled by
-    /// [`TrustSpec::nis_law`] ([`crate::trust::consistency`]; format 9).
+    /// [`TrustSpec::nis_law`] ([`crate::trust::consistency_statistic`];
+    /// format 9).
     pub max_nis: f32,
     /// The exponents `[a, b]` of the consistency statistic's scaling: the
     /// mean normalised innovation times `L^a / s^b`, with `L` the first

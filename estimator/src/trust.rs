@@ -53,7 +53,7 @@
 //!   normalised innovation squared since the burn-in ([`Consistency`],
 //!   where the filter forms `S^-1`: every update of the extended filter,
 //!   the linear filter's only without its gain schedule), scaled by the
-//!   blob's law ([`consistency`]: times `L^a / s^b` for the length `L`
+//!   blob's law ([`consistency_statistic`]: times `L^a / s^b` for the length `L`
 //!   and the widest swing `s`), above the blob's largest, from the
 //!   [`WINDOW`]-th update on (before it the mean rests on a few updates;
 //!   the calibration reads it from there too). Noise heavier than
@@ -78,6 +78,14 @@
 //!   at `g` moves exactly as one of `L g_0 / g` at the blob's `g_0`: no
 //!   check on the measurements can tell them apart, so the length is
 //!   only as right as the gravity it is read at.
+//!
+//! While the recent swing (`SwingWindow::recent`) is below the blob's
+//! smallest trusted, the estimate reported is held from the last
+//! measurement whose latest swing was not (`StepOutput::held`): the
+//! checks that read the estimate (the range, the physical check, the
+//! consistency law's length) read the held one; sigma, the envelope's
+//! bin and the innovations follow the running filter, as they did when
+//! the thresholds were calibrated.
 //!
 //! The verdict is [`Trust::Trusted`] when no check fails and
 //! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
@@ -234,9 +242,13 @@ pub(crate) struct Checks {
     pub in_envelope: bool,
     /// The swing at least the calibrated smallest.
     pub swing_ok: bool,
-    /// The swing's unevenness at most the calibrated largest.
+    /// The largest unevenness remembered of a swing at least the
+    /// smallest trusted ([`SwingWindow::most_uneven`]) at most the
+    /// calibrated largest.
     pub even: bool,
-    /// The mean normalised innovation at most the calibrated largest.
+    /// The consistency statistic ([`consistency_statistic`]: the mean
+    /// normalised innovation scaled by the blob's law) at most the
+    /// calibrated largest.
     pub consistent: bool,
     /// The rate's ratio to the angle's change within the calibrated band.
     pub rate_ok: bool,
@@ -403,14 +415,15 @@ impl SwingWindow {
     /// two blocks: the widest swing so far, the recent swing
     /// ([`SwingWindow::recent`]), and the unevenness if it is the largest
     /// so far of a swing at least `min_swing` (below it the unevenness is
-    /// the tracking noise's: [`SwingWindow::most_uneven`]).
-    pub fn push(&mut self, theta: f32, rate: f32, min_swing: f32) {
+    /// the tracking noise's: [`SwingWindow::most_uneven`]). Returns the
+    /// latest swing (over the last [`WINDOW`] to 2 [`WINDOW`]
+    /// measurements).
+    pub fn push(&mut self, theta: f32, rate: f32, min_swing: f32) -> f32 {
         if self.n == 0 {
             self.current = Block::first(theta, rate);
             self.previous = self.current;
         } else if usize::from(self.n) >= WINDOW {
-            let w = self.current.merge(&self.previous);
-            self.closed = 0.5 * (w.hi[0] - w.lo[0]);
+            self.closed = self.merged().0;
             self.previous = self.current;
             self.current = Block::first(theta, rate);
             self.n = 0;
@@ -425,6 +438,7 @@ impl SwingWindow {
         {
             self.most_uneven = Some(self.most_uneven.map_or(u, |m| m.max(u)));
         }
+        swing
     }
 
     /// The widest swing since the start: the largest half range of
@@ -455,8 +469,9 @@ impl SwingWindow {
     }
 
     /// The recent swing: the larger of the latest (over the last
-    /// [`WINDOW`] to 2 [`WINDOW`] measurements) and the one over the last
-    /// two full blocks (`None` before any angle was measured). Just after
+    /// [`WINDOW`] to 2 [`WINDOW`] measurements) and the one over the two
+    /// blocks that were full when the latest block closed (`None` before
+    /// any angle was measured). Just after
     /// a block closes the latest spans [`WINDOW`] measurements only, less
     /// than a period of a long pendulum at a wide swing (the protocol's
     /// 5 m rod released at 2 rad swings in about 97), and reads a steady
@@ -513,17 +528,29 @@ impl Consistency {
 /// The consistency check's statistic: the mean normalised innovation
 /// squared `nis`, times `length^a / swing^b` for the blob's law `[a, b]`
 /// ([`TrustSpec::nis_law`](crate::blob::TrustSpec::nis_law)); the mean
-/// itself, bit for bit, for the law `[0, 0]`. The length and the swing
-/// are floored at `1e-6` (a length that is not positive fails the
-/// physical check anyway; no swing measured reads as none). The one
-/// definition: the estimator's check and the calibration read it.
-pub fn consistency(nis: f32, length: f32, swing: f32, law: [f32; 2]) -> f32 {
+/// itself, bit for bit, for the law `[0, 0]`. `None` where the law reads
+/// a swing and none was measured (a filter fed encoded measurements
+/// only): the check then passes, as the swing checks do. The length and
+/// the swing are floored at `1e-6` (a length that is not positive, or
+/// NaN, fails the physical check anyway). The one definition: the
+/// estimator's check and the calibration read it.
+pub fn consistency_statistic(
+    nis: f32,
+    length: f32,
+    swing: Option<f32>,
+    law: [f32; 2],
+) -> Option<f32> {
     let [a, b] = law;
     if a == 0.0 && b == 0.0 {
-        return nis;
+        return Some(nis);
     }
     let floor = |v: f32| if v > 1e-6 { v } else { 1e-6 };
-    nis * libm::powf(floor(length), a) / libm::powf(floor(swing), b)
+    let scale = match swing {
+        Some(s) => libm::powf(floor(s), b),
+        None if b == 0.0 => 1.0,
+        None => return None,
+    };
+    Some(nis * libm::powf(floor(length), a) / scale)
 }
 
 /// Whether the measured rate matches the angle's change: over consecutive
@@ -784,10 +811,10 @@ mod verdict_tests {
         assert_eq!(SwingWindow::default().unevenness(), None);
     }
 
-    /// The recent swing spans the two full blocks before the one being
-    /// filled: a steady swing of 0.5 rad at 97 samples a period (more than
-    /// a block) reads at least 0.49 at every measurement from the second
-    /// block on, where the latest alone dips to under 0.4 just after a
+    /// The recent swing spans the two blocks that were full when the
+    /// latest closed: a steady swing of 0.5 rad at 97 samples a period
+    /// (more than a block) reads at least 0.49 at every measurement from
+    /// the third block on (once two blocks have closed), where the latest alone dips to under 0.4 just after a
     /// block closes (65 samples, two thirds of a period: the range misses
     /// up to a third of the cycle around a turning point, and reads at
     /// least (1 + cos 60 deg) / 2 = 0.75 of the swing).
@@ -827,16 +854,21 @@ mod verdict_tests {
             }
         };
         assert_eq!(w.most_uneven(), None);
-        // About an offset of 0.02 on 0.5 rad: 0.04.
-        push(&mut w, 0.5, 0.02, 2 * WINDOW);
+        // About an offset of 0.02 on 0.5 rad: 0.04. The phases end off
+        // the blocks' edges, so windows span two phases.
+        push(&mut w, 0.5, 0.02, 2 * WINDOW + 17);
         let first = w.most_uneven().unwrap();
         assert!((first - 0.04).abs() < 1e-3, "{first}");
         // Then centred: the largest stays.
-        push(&mut w, 0.5, 0.0, 2 * WINDOW);
+        push(&mut w, 0.5, 0.0, 2 * WINDOW + 29);
         assert_eq!(w.most_uneven(), Some(first));
         // Then a swing of 0.05 about 0.1 (a pendulum stopped off-centre,
-        // noise on it): below the smallest trusted, not remembered.
-        push(&mut w, 0.05, 0.1, 4 * WINDOW);
+        // noise on it): while a window still holds the wide swing its
+        // extremes are the wide swing's (even); once only the small one
+        // is left (unevenness 2), it is below the smallest trusted and
+        // not remembered.
+        push(&mut w, 0.05, 0.1, 4 * WINDOW + 5);
+        assert!((w.read().unwrap().1.unwrap() - 2.0).abs() < 1e-3);
         assert_eq!(w.most_uneven(), Some(first));
     }
 
@@ -846,18 +878,21 @@ mod verdict_tests {
     #[test]
     fn the_consistency_law_scales_the_mean() {
         for v in [0.0, 1.0, 3.7e-3, 5.1e4] {
-            assert_eq!(
-                consistency(v, f32::NAN, -1.0, [0.0, 0.0]).to_bits(),
-                v.to_bits()
-            );
+            let plain = consistency_statistic(v, f32::NAN, None, [0.0, 0.0]).unwrap();
+            assert_eq!(plain.to_bits(), v.to_bits());
         }
-        let c = consistency(100.0, 0.25, 0.5, [1.0, 2.0]);
+        let c = consistency_statistic(100.0, 0.25, Some(0.5), [1.0, 2.0]).unwrap();
         assert!((c - 100.0 * 0.25 / 0.25).abs() < 1e-3, "{c}");
-        let c = consistency(100.0, 0.64, 0.1, [0.5, 1.0]);
+        let c = consistency_statistic(100.0, 0.64, Some(0.1), [0.5, 1.0]).unwrap();
         assert!((c - 100.0 * 0.8 / 0.1).abs() < 1e-2, "{c}");
         for (l, s) in [(f32::NAN, 0.1), (0.0, 0.1), (0.5, f32::NAN), (0.5, -1.0)] {
-            assert!(consistency(10.0, l, s, [0.75, 1.15]).is_finite());
+            let c = consistency_statistic(10.0, l, Some(s), [0.75, 1.15]).unwrap();
+            assert!(c.is_finite(), "{c}");
         }
+        // No swing measured: not formed where the law reads one.
+        assert_eq!(consistency_statistic(10.0, 0.5, None, [0.75, 1.15]), None);
+        let c = consistency_statistic(10.0, 0.25, None, [1.0, 0.0]).unwrap();
+        assert!((c - 2.5).abs() < 1e-5, "{c}");
     }
 
     /// The mean of the normalised innovations: none before any, the mean

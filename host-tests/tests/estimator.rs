@@ -688,9 +688,9 @@ fn the_worst_window_is_remembered_and_a_gap_breaks_the_rate_chain() {
 /// measurements, then at rest 0.01 rad off the vertical with 2 mrad of
 /// tracking jitter for 600 (friction has stopped it). Once the recent
 /// swing is below the rig blob's smallest trusted (0.072 rad), the
-/// estimate reported
-/// is the one after the last measurement of the wide swing, bit for bit,
-/// and says so (`held`), while the filter runs on; a reset forgets it.
+/// estimate reported is the one after the last measurement whose latest
+/// swing was not, bit for bit, and says so (`held`), while the filter
+/// runs on; a reset forgets it.
 #[test]
 fn the_estimate_is_held_over_a_swing_too_small_to_read() {
     use trainer_core::physics::{Pendulum, Rig};
@@ -709,25 +709,26 @@ fn the_estimate_is_held_over_a_swing_too_small_to_read() {
         xs.push([0.01 + jitter, 0.0]);
     }
     let mut est = Estimator::new(&m).with_gravity(9.81).unwrap();
-    let mut last_wide = None;
-    let mut out = None;
-    for x in &xs {
-        let o = est.step(x).unwrap();
-        if !o.held {
-            last_wide = Some(o.clone());
-        }
-        out = Some(o);
-    }
-    let (out, wide) = (out.unwrap(), last_wide.unwrap());
+    let outs: Vec<_> = xs.iter().map(|x| est.step(x).unwrap()).collect();
+    let out = outs.last().unwrap();
     assert!(out.held, "a pendulum at rest is not read");
-    // The recent swing reads the two full blocks before the one being
-    // filled: the wide swing leaves it within three blocks of stopping.
+    // Held from the last measurement whose latest swing (the last 64 to
+    // 128 measurements) still held the wide one: within two blocks of the
+    // swing stopping. It is reported once the recent swing (which also
+    // reads the two blocks full when the latest closed) has let the wide
+    // one go too: within three.
+    let wide = outs
+        .iter()
+        .rposition(|o| !o.held && o.params == out.params)
+        .unwrap();
+    assert!((300..300 + 2 * WINDOW).contains(&wide), "held from {wide}");
+    let first_held = outs.iter().position(|o| o.held).unwrap();
     assert!(
-        (300..300 + 3 * WINDOW as u32).contains(&wide.t),
-        "held from {}",
-        wide.t
+        (wide..300 + 3 * WINDOW).contains(&first_held),
+        "held at {first_held}"
     );
-    assert_eq!(out.params, wide.params);
+    assert!(outs[first_held..].iter().all(|o| o.held));
+    let wide = &outs[wide];
     assert_eq!(out.param_std, wide.param_std);
     assert_eq!(out.coordinate, wide.coordinate);
     // Read within 5% from the wide swing.

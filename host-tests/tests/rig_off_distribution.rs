@@ -195,7 +195,7 @@ fn rig_blob_off_distribution_suite() {
             if row.add(c.truth, &first, &end) {
                 let s = &c.spec;
                 eprintln!(
-                    "{name}: wrong and trusted: {:.3} m released at {:.3} rad, {:.0} s at {:.0} Hz, noise {:.4} rad, {:?}; after {} {:.4} (effect {:.3}) {} {:?} (nis {:?}), at the end {:.4} (effect {:.3}) {} {:?} (nis {:?})",
+                    "{name}: wrong and trusted: {:.3} m released at {:.3} rad, {:.0} s at {:.0} Hz, noise {:.4} rad, {:?}; after {} {:.4} (effect {:.3}) {} {:?} (consistency {:?}), at the end {:.4} (effect {:.3}) {} {:?} (consistency {:?}, held {})",
                     c.truth,
                     s.theta0,
                     s.duration,
@@ -207,12 +207,13 @@ fn rig_blob_off_distribution_suite() {
                     first.effect,
                     first.trust,
                     first.reasons,
-                    first.nis,
+                    first.consistency,
                     end.length,
                     end.effect,
                     end.trust,
                     end.reasons,
-                    end.nis,
+                    end.consistency,
+                    end.held,
                 );
             }
         }

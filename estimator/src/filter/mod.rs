@@ -58,7 +58,10 @@
 //! them through each parameter's [`Reading`](crate::blob::Reading) (the
 //! shipped length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
 //! gives them as they are. Corrections, sigma and the trust verdict stay
-//! in the coordinates.
+//! in the coordinates. While the swing is too small to read (below the
+//! blob's smallest trusted), the three report the filter as it was after
+//! the last measurement of a swing wide enough, not as it is
+//! ([`StepOutput::held`]); [`Estimator::mean`] is always the filter's.
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
@@ -99,9 +102,11 @@ pub struct StepOutput {
     /// own `P` leaves out the model's error).
     pub param_std: [f32; PARAM_DIM],
     /// The filter's coordinates `q` of the parameters (the `p` part of the
-    /// mean; equal to `params` at both ends of their training ranges).
+    /// mean, or the held one: [`StepOutput::held`]; equal to `params` at
+    /// both ends of their training ranges).
     pub coordinate: [f32; PARAM_DIM],
-    /// The filter's standard deviations of the coordinates, `sqrt(diag P)`.
+    /// The filter's standard deviations of the coordinates, `sqrt(diag P)`
+    /// (or the held ones).
     pub coordinate_std: [f32; PARAM_DIM],
     /// The correction this step made to each coordinate.
     pub correction: [f32; PARAM_DIM],
@@ -130,8 +135,10 @@ pub struct StepOutput {
     pub nis: Option<f32>,
     /// What the consistency check reads: [`StepOutput::nis`] scaled by
     /// the blob's law for the length and the widest swing
-    /// ([`crate::trust::consistency`]; the mean itself for a blob whose
-    /// law is `[0, 0]`).
+    /// ([`crate::trust::consistency_statistic`]; the mean itself for a
+    /// blob whose law is `[0, 0]`; `None` before any innovation, or where
+    /// the law reads a swing and only encoded measurements were given:
+    /// the check passes).
     pub consistency: Option<f32>,
     /// The change of the measured angle over the change the measured
     /// rates predict, `dt` apart, least squares since the start
@@ -154,14 +161,18 @@ pub struct StepOutput {
     /// Whether the parameters, their standard deviations and the
     /// coordinates are held: the recent swing (the half range of `theta`
     /// over the last [`WINDOW`](crate::WINDOW) to 2
-    /// [`WINDOW`](crate::WINDOW) measurements, or over the two full
-    /// blocks of [`WINDOW`](crate::WINDOW) before them, whichever is
-    /// wider) is below the blob's
-    /// smallest trusted, and these are the filter's after the last
-    /// measurement whose swing was not. The filter runs on (a swing that
-    /// grows again is read from where it has got to); a swing never that
-    /// wide is reported as it is (and flagged
-    /// [`Reason::SmallSwing`](crate::trust::Reason::SmallSwing)).
+    /// [`WINDOW`](crate::WINDOW) measurements, or over the two blocks of
+    /// [`WINDOW`](crate::WINDOW) that were full when the latest block
+    /// closed, whichever is wider: a long pendulum's wide swing never
+    /// reads small) is below the blob's smallest trusted, and these are
+    /// the filter's after the last measurement whose latest swing was
+    /// not. The filter runs on (a swing that grows again is read from
+    /// where it has got to); a swing never that wide is reported as it
+    /// is (and flagged
+    /// [`Reason::SmallSwing`](crate::trust::Reason::SmallSwing)). The
+    /// checks read the reported values (the range, the physical check,
+    /// the consistency law's length); sigma, the envelope's bin and the
+    /// innovations follow the running filter.
     pub held: bool,
 }
 
@@ -201,9 +212,9 @@ pub struct Estimator<'m> {
     kinematics: Kinematics,
     swing: SwingWindow,
     /// The parameters' coordinates and the filter's standard deviations
-    /// of them after the latest measurement whose swing was at least the
-    /// blob's smallest trusted: what is reported while the swing is
-    /// smaller ([`StepOutput::held`]).
+    /// of them after the latest measurement whose latest swing was at
+    /// least the blob's smallest trusted: what is reported while the
+    /// recent swing is smaller ([`StepOutput::held`]).
     held: Option<([f32; PARAM_DIM], [f32; PARAM_DIM])>,
     /// Declared gravity over the blob's training gravity: what a parameter
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
@@ -456,7 +467,9 @@ impl<'m> Estimator<'m> {
     /// `z = phi(x_n)` (what [`Estimator::step`] does after encoding). A
     /// non-finite `z` is refused with [`Error::NonFiniteInput`] and the
     /// state is unchanged. Without the measured state the envelope check
-    /// has nothing to look at: it passes.
+    /// has nothing to look at: it passes, as do the swing checks, the
+    /// rate check and a consistency check whose law reads the swing
+    /// ([`crate::trust::consistency_statistic`]); nothing is held.
     pub fn step_latent(&mut self, z: &Latent) -> Result<StepOutput, Error> {
         self.update(z, None)
     }
@@ -558,8 +571,10 @@ impl<'m> Estimator<'m> {
         };
         let [theta, rate] = *raw;
         let min_swing = self.model.blob().body.trust.min_swing;
-        self.swing.push(theta, rate, min_swing);
-        if self.swing.recent().is_some_and(|s| s >= min_swing) {
+        // The snapshot from the latest swing, the decision to report it
+        // from the recent one (which lags): nothing the small swing told
+        // the filter gets into the snapshot.
+        if self.swing.push(theta, rate, min_swing) >= min_swing {
             self.held = Some((*tail(&self.g), self.param_std));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
@@ -585,7 +600,7 @@ impl<'m> Estimator<'m> {
     fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
         let blob = self.model.blob();
         let calib = &blob.body.trust;
-        // While the latest swing is below the smallest trusted, the
+        // While the recent swing is below the smallest trusted, the
         // estimate of the last swing that was not: a swing that small
         // moves the filter by the model's error and the noise, not by
         // what the length is.
@@ -624,7 +639,7 @@ impl<'m> Estimator<'m> {
         let consistency = self
             .consistency
             .mean()
-            .map(|m| trust::consistency(m, length, swing.unwrap_or(f32::NAN), calib.nis_law));
+            .and_then(|m| trust::consistency_statistic(m, length, swing, calib.nis_law));
         let [lo, hi] = calib.range;
         let checks = Checks {
             corrections: self.spread.n,

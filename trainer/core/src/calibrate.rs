@@ -32,15 +32,18 @@
 //!    [`CalibrateConfig::accurate`] or more off after the window.
 //!    The largest trusted unevenness of the swing: the conformal quantile
 //!    at `1 - unevenness_alpha` of the largest each rollout leaves (what
-//!    the device remembers, swings below the smallest trusted left out:
-//!    a second pass with that swing in place), or
-//!    [`unevenness_floor`] (the tracking noise at the smallest trusted
-//!    swing, for lab-like rollouts), whichever is larger.
-//!    The largest mean normalised innovation and the largest departure
-//!    of the rate ratio from 1 (format 9): conformal quantiles at
-//!    `1 - nis_alpha` and `1 - rate_alpha` of each rollout's largest
-//!    from the window on (where the device applies them), the latter no
-//!    less than [`CalibrateConfig::rate_floor`]. Where a
+//!    the device remembers, swings below the smallest trusted left out),
+//!    or [`least_max_unevenness`] (the tracking noise at the smallest
+//!    trusted swing, for lab-like rollouts), whichever is larger.
+//!    The consistency law (format 10, where
+//!    [`CalibrateConfig::nis_law`] asks for it and innovations were
+//!    measured): [`fit_nis_law`] over every update from the window on.
+//!    The largest consistency statistic (the mean normalised innovation
+//!    scaled by that law) and the largest departure of the rate ratio
+//!    from 1 (format 9): conformal quantiles at `1 - nis_alpha` and
+//!    `1 - rate_alpha` of each rollout's largest from the window on
+//!    (where the device applies them), the latter no less than
+//!    [`CalibrateConfig::rate_floor`]. Where a
 //!    [`CalibrateConfig::range_margin`] is set, the range is held within
 //!    the trained lengths widened by it (with
 //!    [`CalibrateConfig::range_fixed`], it is those lengths widened). The effect's standard deviation,
@@ -122,11 +125,13 @@ pub struct CalibrateConfig {
     /// Share of in-distribution rollouts the unevenness check may flag.
     pub unevenness_alpha: f64,
     /// The least largest unevenness: the window's own error where an
-    /// extreme lies near a turning point rather than at one (up to 0.023,
-    /// `SwingWindow::TURN` in the estimator) and tracking noise of 0.01 rad
-    /// on a swing of 0.5 rad (0.02) together. The undamped held-out
-    /// rollouts read about 0.003 (the sampled turning points); a threshold
-    /// set by them alone would flag the noise of every real recording.
+    /// extreme lies near a turning point rather than at one (up to 0.023
+    /// for a nearly harmonic swing, `SwingWindow::TURN` in the estimator)
+    /// and tracking noise of 0.01 rad on a swing of 0.5 rad (0.02)
+    /// together. A threshold set by clean held-out rollouts alone would
+    /// flag the noise of every real recording. For lab-like rollouts
+    /// [`least_max_unevenness`] raises it to the noise at the smallest
+    /// trusted swing.
     pub unevenness_floor: f64,
     /// Share of in-distribution rollouts the rate check may flag.
     #[serde(default = "one_percent")]
@@ -226,15 +231,15 @@ pub struct Calibration {
     pub effect_std: [f32; 2],
     /// The smallest swing that passes, rad (0: all pass).
     pub min_swing: f32,
-    /// The calibration set's unevenness quantile at `1 - unevenness_alpha`
-    /// (after the window and after the long run, where measured).
+    /// The calibration set's quantile at `1 - unevenness_alpha` of the
+    /// largest unevenness each rollout leaves (where measured).
     pub unevenness_quantile: f32,
-    /// The largest unevenness that passes: that quantile or the floor,
-    /// whichever is larger.
+    /// The largest unevenness that passes: that quantile or
+    /// [`least_max_unevenness`], whichever is larger.
     pub max_unevenness: f32,
-    /// The largest mean normalised innovation that passes: the
-    /// calibration set's quantile at `1 - nis_alpha` (after the window and
-    /// after the long run, where measured; every value passes where no
+    /// The largest consistency statistic that passes: the calibration
+    /// set's quantile at `1 - nis_alpha` of each rollout's largest from
+    /// the window on, scaled by the law (every value passes where no
     /// held-out rollout measured one, as a linear blob on its schedule).
     pub max_nis: f32,
     /// The consistency statistic's law `[a, b]` (the mean times
@@ -424,11 +429,11 @@ pub fn map_bytes(cfg: &CalibrateConfig) -> usize {
 /// is `min_swing` (rad): [`CalibrateConfig::unevenness_floor`], or for
 /// lab-like held-out rollouts, where larger, their largest tracking noise
 /// over that swing. The device remembers the largest unevenness of every
-/// swing down to the smallest trusted, and one turning point off by the
-/// noise moves the middle of the range by half of it and the half range
-/// by half of it: an unevenness of about `noise / swing` from the noise
-/// alone (0.138 for the rig blob: 0.01 rad over 0.072 rad).
-pub fn unevenness_floor(cfg: &CalibrateConfig, min_swing: f32) -> f64 {
+/// swing down to the smallest trusted, over hundreds of windows: two
+/// turning points each off by the noise the same way move the middle of
+/// the range by the noise, an unevenness of `noise / swing` from the
+/// noise alone (0.138 for the rig blob: 0.01 rad over 0.072 rad).
+pub fn least_max_unevenness(cfg: &CalibrateConfig, min_swing: f32) -> f64 {
     let noise = cfg.lab.as_ref().map_or(0.0, |l| l.draw.noise[1]);
     if min_swing > 0.0 {
         cfg.unevenness_floor.max(noise / f64::from(min_swing))
@@ -472,7 +477,8 @@ fn checkpoints(m: &Model<'_>, xs: &[[f32; 2]]) -> Result<(StepOutput, StepOutput
 
 /// What the consistency check reads at one update: the mean normalised
 /// innovation, the length at the blob's gravity and the widest swing
-/// (the arguments of [`estimator::trust::consistency`] before the law).
+/// (the arguments of [`estimator::trust::consistency_statistic`] before
+/// the law).
 type NisSample = [f32; 3];
 
 /// Over the updates from the [`WINDOW`]-th on (where the device applies
@@ -525,6 +531,7 @@ fn checkpoints_with_extremes(
     let mut at_window = None;
     let mut last = None;
     let mut ext = Extremes::default();
+    let length = m.blob().body.params[0];
     let most = |a: Option<f32>, b: Option<f32>| match (a, b) {
         (Some(x), Some(y)) => Some(x.max(y)),
         (x, y) => x.or(y),
@@ -535,8 +542,9 @@ fn checkpoints_with_extremes(
             at_window = Some(out.clone());
         }
         if n + 1 >= WINDOW {
+            // The length at the blob's gravity, as the device reads it.
             if let Some(v) = out.nis {
-                ext.nis.push([v, out.params[0], out.swing]);
+                ext.nis.push([v, length.read(out.coordinate[0]), out.swing]);
             }
             ext.rate_off = most(ext.rate_off, out.rate_ratio.map(|r| (r - 1.0).abs()));
         }
@@ -735,8 +743,11 @@ pub fn calibrate(
         std_cover(&mut e_long, &e_win, cfg.coverage)
     };
     let unevenness_quantile = conformal(&mut uneven, 1.0 - cfg.unevenness_alpha) as f32;
-    let max_unevenness = unevenness_quantile.max(unevenness_floor(cfg, min_swing) as f32);
-    let nis_law = if cfg.nis_law {
+    let max_unevenness = unevenness_quantile.max(least_max_unevenness(cfg, min_swing) as f32);
+    // A blob whose filter forms no innovation (a linear one on its
+    // schedule) has nothing to fit: the plain mean, which it never
+    // measures either.
+    let nis_law = if cfg.nis_law && traces.iter().any(|t| !t.is_empty()) {
         fit_nis_law(traces.iter().flatten())?
     } else {
         [0.0; 2]
@@ -747,7 +758,9 @@ pub fn calibrate(
         .iter()
         .filter_map(|t| {
             t.iter()
-                .map(|&[v, l, s]| estimator::trust::consistency(v, l, s, nis_law))
+                .filter_map(|&[v, l, s]| {
+                    estimator::trust::consistency_statistic(v, l, Some(s), nis_law)
+                })
                 .reduce(f32::max)
         })
         .map(f64::from)
@@ -872,7 +885,7 @@ mod tests {
         let scaled: Vec<f32> = samples
             .iter()
             .take(400)
-            .map(|&[v, l, s]| estimator::trust::consistency(v, l, s, [a, b]))
+            .filter_map(|&[v, l, s]| estimator::trust::consistency_statistic(v, l, Some(s), [a, b]))
             .collect();
         assert!(scaled.iter().all(|c| (c - 3.0).abs() < 1e-3), "{scaled:?}");
         assert!(fit_nis_law([[1.0, 1.0, 1.0]; 2].iter()).is_err());
@@ -887,7 +900,7 @@ mod tests {
     #[test]
     fn the_unevenness_floor_is_the_noise_at_the_smallest_swing() {
         let protocol = CalibrateConfig::default();
-        assert_eq!(unevenness_floor(&protocol, 0.072), 0.05);
+        assert_eq!(least_max_unevenness(&protocol, 0.072), 0.05);
         let lab = CalibrateConfig {
             lab: Some(LabHeldOut {
                 theta0: [0.03, 1.5],
@@ -899,9 +912,9 @@ mod tests {
             }),
             ..CalibrateConfig::default()
         };
-        let f = unevenness_floor(&lab, 0.072);
+        let f = least_max_unevenness(&lab, 0.072);
         assert!((f - 0.01 / 0.072).abs() < 1e-6, "{f}");
-        assert_eq!(unevenness_floor(&lab, 0.0), 0.05);
-        assert_eq!(unevenness_floor(&lab, 1.0), 0.05);
+        assert_eq!(least_max_unevenness(&lab, 0.0), 0.05);
+        assert_eq!(least_max_unevenness(&lab, 1.0), 0.05);
     }
 }

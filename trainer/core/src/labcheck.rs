@@ -80,6 +80,13 @@ pub struct At {
     /// The rate's ratio to the angle's change, where measured.
     #[serde(default)]
     pub rate_ratio: Option<f32>,
+    /// The consistency statistic the check reads (the mean innovation
+    /// scaled by the blob's law), where measured.
+    #[serde(default)]
+    pub consistency: Option<f32>,
+    /// Whether the estimate is held (the swing too small to read).
+    #[serde(default)]
+    pub held: bool,
 }
 
 impl At {
@@ -98,6 +105,8 @@ impl At {
                 .collect(),
             nis: out.nis,
             rate_ratio: out.rate_ratio,
+            consistency: out.consistency,
+            held: out.held,
         }
     }
 
@@ -410,6 +419,8 @@ mod tests {
             reasons: vec![],
             nis: None,
             rate_ratio: None,
+            consistency: None,
+            held: false,
         }
     }
 

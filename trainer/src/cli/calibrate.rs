@@ -433,7 +433,7 @@ mod tests {
 
     /// The shipped blob written back as format 8 (its trust section
     /// without `max_nis` and `max_rate_mismatch`) upgrades to the shipped
-    /// blob with those two checks open, byte for byte; `koopman
+    /// blob with those two checks open and the law `[0, 0]`, byte for byte; `koopman
     /// calibrate` then sets them.
     #[test]
     fn a_format_8_blob_upgrades_to_the_same_blob() {
@@ -494,7 +494,7 @@ mod tests {
 
     /// The shipped blob written back as format 7 (its body without the
     /// rig, the header's version 7) upgrades to the shipped blob (format
-    /// 9's checks open), byte for byte: the upgrade adds the rod and
+    /// 9's checks open, format 10's law `[0, 0]`), byte for byte: the upgrade adds the rod and
     /// changes nothing else.
     #[test]
     fn a_format_7_blob_upgrades_to_the_same_blob_with_the_rod() {
