@@ -743,3 +743,33 @@ fn the_estimate_is_held_over_a_swing_too_small_to_read() {
     est.reset();
     assert!(!est.step(&xs[0]).unwrap().held);
 }
+
+/// Encoded measurements only (`step_latent`): no angle, so no swing. The
+/// rig blob's consistency law reads the swing, so the statistic is not
+/// formed and the check passes, as the swing checks do (a swing floored
+/// at 1e-6 would multiply the mean by about 7e6 and flag every step);
+/// the mean innovation itself is still reported, and nothing is held.
+#[test]
+fn encoded_measurements_pass_a_law_that_reads_the_swing() {
+    use trainer_core::physics::{Pendulum, Rig};
+    let bytes = host_tests::rig_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    assert_ne!(m.blob().body.trust.nis_law[1], 0.0);
+    let mut p = Pendulum::of(Rig::Simple, 0.5);
+    p.g = 9.81;
+    let mut est = Estimator::new(&m).with_gravity(9.81).unwrap();
+    let mut last = None;
+    for x in p.rollout([0.3, 0.0], 200, f64::from(m.blob().body.dt)) {
+        let z = m.encode(&m.normalise(&[x[0] as f32, x[1] as f32]));
+        last = Some(est.step_latent(&z).unwrap());
+    }
+    let out = last.unwrap();
+    assert!(out.nis.is_some());
+    assert_eq!(out.consistency, None);
+    assert!(!out.held);
+    assert!(
+        !out.trust.reasons().contains(&Reason::Inconsistent),
+        "{:?}",
+        out.trust
+    );
+}
