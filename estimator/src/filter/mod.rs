@@ -609,9 +609,13 @@ impl<'m> Estimator<'m> {
         let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.g), self.param_std));
         let mut params = [0.0; PARAM_DIM];
         let mut param_std = [0.0; PARAM_DIM];
+        // Each parameter read at the blob's gravity (the length there is
+        // what the model's own error follows: the consistency law's).
+        let mut reads = [0.0; PARAM_DIM];
         let specs = &blob.body.params;
-        for ((((((p, s), spec), q), q_std), a), b) in params
+        for (((((((p, r), s), spec), q), q_std), a), b) in params
             .iter_mut()
+            .zip(reads.iter_mut())
             .zip(param_std.iter_mut())
             .zip(specs)
             .zip(&coordinate)
@@ -624,7 +628,8 @@ impl<'m> Estimator<'m> {
             } else {
                 1.0
             };
-            *p = scale * spec.read(*q);
+            *r = spec.read(*q);
+            *p = scale * *r;
             let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
             *s = scale * libm::fabsf(spec.slope(*q)) * calibrated;
         }
@@ -633,9 +638,7 @@ impl<'m> Estimator<'m> {
         let unevenness = self.swing.most_uneven();
         let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
         let swing = self.swing.widest();
-        // The length at the blob's gravity: what the model's own error
-        // follows (the declared gravity only rescales the report).
-        let length = specs.first().map_or(f32::NAN, |spec| spec.read(q0));
+        let length = reads.first().copied().unwrap_or(f32::NAN);
         let consistency = self
             .consistency
             .mean()
