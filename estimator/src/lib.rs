@@ -1,15 +1,63 @@
-//! A learned Koopman model and a Kalman filter over its latent state and
-//! the system's physical parameters, for microcontrollers: `no_std`, no
-//! allocator, fixed sizes, no panics.
+//! A learned pendulum model and a Kalman filter that reads a rig's length
+//! from one recording, step by step, and says whether to trust it.
 //!
-//! - [`blob`]: the weights format (one definition for trainer and device).
-//! - [`model::Model`]: reads a blob in place; encoder, decoder, simulation.
-//! - [`filter::Estimator`]: the 18-dim Kalman filter, step by step.
-//! - [`trust`]: the verdict on each estimate, with its reasons.
-//! - [`rig`]: which length the motion is read as (a string's or a rod's).
+//! A blob made by the trainer (`koopman export`) holds a Deep Koopman
+//! model: an encoder maps each measurement `(theta, theta_dot)` to a
+//! latent `y`, and the physical parameters `p` (the length, and one effect
+//! such as damping) ride along, so that a Kalman filter over `[y; p]`
+//! estimates them as the measurements come. Each step returns the
+//! estimate, its standard deviation and a [`Trust`] verdict with its
+//! [`Reason`]s. `no_std`, no allocator, fixed sizes, no panics: the blob
+//! is read where it lies ([`blob::Aligned`]) and the same code runs on the
+//! host and on a Cortex-M4F.
 //!
-//! Sizes are the named constants below; the filter's notation (`F`, `H`,
-//! `Q`, `R`, `P`) is defined once in [`filter`].
+//! - [`Model`]: a blob, read and checked in place ([`blob`] is its format).
+//! - [`Estimator`]: the filter; [`Estimator::step`] gives a [`StepOutput`].
+//! - [`Trust`], [`Reason`]: the verdict, and why.
+//! - [`Rig`]: which length the motion is read as (a string's or a rod's).
+//! - [`Error`]: every way a blob or a measurement is refused.
+//!
+//! # Examples
+//!
+//! A string 0.8 m long swung to 0.4 rad, measured every 0.04 s (the
+//! blob's interval) for 30 s:
+//!
+//! ```
+//! use estimator::blob::Aligned;
+//! use estimator::{Estimator, Model, Trust};
+//!
+//! static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../weights/rig.kkf"));
+//!
+//! let model = Model::from_bytes(&RIG.0)?; // magic, version, sizes, CRC
+//! // Your rig's g: the length is reported for it.
+//! let mut est = Estimator::new(&model).with_gravity(9.81)?;
+//!
+//! let (g, length, dt) = (9.81f32, 0.8f32, 0.04f32);
+//! let (mut theta, mut rate) = (0.4f32, 0.0f32);
+//! let mut out = est.step(&[theta, rate])?;
+//! assert_eq!(out.trust, Trust::Pending); // no verdict before the burn-in
+//! for _ in 0..750 {
+//!     for _ in 0..100 {
+//!         rate -= g / length * libm::sinf(theta) * dt / 100.0;
+//!         theta += rate * dt / 100.0;
+//!     }
+//!     out = est.step(&[theta, rate])?;
+//! }
+//! let (read, std) = (out.params[0], out.param_std[0]);
+//! assert!((read - length).abs() < 0.02 * length, "{read} m");
+//! assert!(std > 0.0 && out.trust.is_trusted(), "{:?}", out.trust);
+//!
+//! // A NaN is refused and changes nothing.
+//! assert!(est.step(&[f32::NAN, 0.0]).is_err());
+//!
+//! // Predict 50 steps ahead for a given length (m) and damping (1/s).
+//! let mut future = [[0.0f32; 2]; 50];
+//! model.simulate(&[0.3, 0.0], &[0.5, 0.02], &mut future)?;
+//! # Ok::<(), estimator::Error>(())
+//! ```
+//!
+//! The filter's notation (`F`, `H`, `Q`, `R`, `P`) is defined once, in the
+//! `filter` module's docs (`src/filter/mod.rs`).
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -20,17 +68,42 @@
     clippy::indexing_slicing
 )]
 
+/// Declares an item the trainer and the tests need beyond the public API:
+/// `pub` and `#[doc(hidden)]` with the `internals` feature, crate-private
+/// without it. Write the item as `pub`.
+macro_rules! internal {
+    ($(#[$m:meta])* pub $($item:tt)*) => {
+        #[cfg(feature = "internals")]
+        $(#[$m])*
+        #[doc(hidden)]
+        pub $($item)*
+
+        #[cfg(not(feature = "internals"))]
+        $(#[$m])*
+        #[allow(dead_code, unused_imports)]
+        pub(crate) $($item)*
+    };
+}
+
 pub mod blob;
 mod error;
-pub mod filter;
-pub mod model;
-pub mod rig;
-pub mod trust;
+internal! {
+    pub mod filter;
+}
+internal! {
+    pub mod model;
+}
+internal! {
+    pub mod rig;
+}
+internal! {
+    pub mod trust;
+}
 
 pub use error::Error;
-pub use filter::{Estimator, StepOutput};
+pub use filter::{AugMatrix, AugVector, Estimator, MAX_ABS_INPUT, StepOutput};
 pub use model::Model;
-pub use rig::Rig;
+pub use rig::{Rig, UnknownRig};
 pub use trust::{Reason, Reasons, Trust};
 
 /// Measured state size: `(theta, theta_dot)`.
@@ -41,17 +114,25 @@ pub const LATENT_DIM: usize = 16;
 pub const PARAM_DIM: usize = 2;
 /// Filter state size, `[y; p]`.
 pub const AUG_DIM: usize = LATENT_DIM + PARAM_DIM;
-/// The widest hidden layer of the encoder and decoder (the protocol's
-/// blob's).
-pub const HIDDEN_DIM: usize = 128;
-/// The hidden widths a blob may have (its header's `hidden_dim`): the
-/// estimator runs each with sizes fixed at compile time. A narrower
-/// encoder costs a step less (the rig blob's 64).
-pub const HIDDEN_WIDTHS: [usize; 2] = [HIDDEN_NARROW, HIDDEN_DIM];
-/// The narrower of the [`HIDDEN_WIDTHS`] (the rig blob's).
-pub const HIDDEN_NARROW: usize = 64;
-/// Control inputs (torque).
-pub const INPUT_DIM: usize = 1;
+internal! {
+    /// The widest hidden layer of the encoder and decoder (the protocol's
+    /// blob's).
+    pub const HIDDEN_DIM: usize = 128;
+}
+internal! {
+    /// The hidden widths a blob may have (its header's `hidden_dim`): the
+    /// estimator runs each with sizes fixed at compile time. A narrower
+    /// encoder costs a step less (the rig blob's 64).
+    pub const HIDDEN_WIDTHS: [usize; 2] = [HIDDEN_NARROW, HIDDEN_DIM];
+}
+internal! {
+    /// The narrower of the hidden widths (the rig blob's).
+    pub const HIDDEN_NARROW: usize = 64;
+}
+internal! {
+    /// Control inputs (torque).
+    pub const INPUT_DIM: usize = 1;
+}
 /// The protocol's estimation window: the filter sees `x_0 .. x_63`, and
 /// the blob's gain schedule covers its `WINDOW - 1` updates.
 pub const WINDOW: usize = 64;

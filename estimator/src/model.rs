@@ -14,11 +14,13 @@ compile_error!(
     "the blob's weights are little-endian f32 read in place: little-endian targets only"
 );
 
-/// The latent rows of `F`, `C = [A B]`, stored column by column: `C^T`
-/// (AUG rows of LATENT), decoded once. The filter reads them every step,
-/// summing scaled columns. The parameter rows of `F` are the identity
-/// (checked when the blob is read).
-pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
+internal! {
+    /// The latent rows of `F`, `C = [A B]`, stored column by column: `C^T`
+    /// (AUG rows of LATENT), decoded once. The filter reads them every step,
+    /// summing scaled columns. The parameter rows of `F` are the identity
+    /// (checked when the blob is read).
+    pub type KoopmanColumns = [[f32; LATENT_DIM]; AUG_DIM];
+}
 
 /// Hidden outputs computed per block by [`dense`]: as many accumulators as
 /// the target's vector registers hold beside the weights being loaded.
@@ -87,20 +89,22 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
     }
 }
 
-/// The gain schedule's tail (see the blob's "gain schedule"), read in
-/// place: what the filter needs after update `T` in two-stage form.
-#[derive(Debug, Clone, Copy)]
-pub struct Tail<'a> {
-    /// `S~^-1`, the inverse of the bias-free innovation covariance (the
-    /// held gain is `K~ = I - R S~^-1`).
-    pub si: &'a [[f32; LATENT_DIM]; LATENT_DIM],
-    /// `P~`, the bias-free covariance after an update.
-    pub pt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
-    /// `V_T`, the sensitivity of `y` to `p` after update `T`, column by
-    /// column.
-    pub v: &'a [[f32; LATENT_DIM]; PARAM_DIM],
-    /// `P_b,T`, the parameters' covariance after update `T`.
-    pub pb: &'a [[f32; PARAM_DIM]; PARAM_DIM],
+internal! {
+    /// The gain schedule's tail (see the blob's "gain schedule"), read in
+    /// place: what the filter needs after update `T` in two-stage form.
+    #[derive(Debug, Clone, Copy)]
+    pub struct Tail<'a> {
+        /// `S~^-1`, the inverse of the bias-free innovation covariance (the
+        /// held gain is `K~ = I - R S~^-1`).
+        pub si: &'a [[f32; LATENT_DIM]; LATENT_DIM],
+        /// `P~`, the bias-free covariance after an update.
+        pub pt: &'a [[f32; LATENT_DIM]; LATENT_DIM],
+        /// `V_T`, the sensitivity of `y` to `p` after update `T`, column by
+        /// column.
+        pub v: &'a [[f32; LATENT_DIM]; PARAM_DIM],
+        /// `P_b,T`, the parameters' covariance after update `T`.
+        pub pb: &'a [[f32; PARAM_DIM]; PARAM_DIM],
+    }
 }
 
 impl<'a> Tail<'a> {
@@ -162,13 +166,15 @@ impl<'a> Nets<'a> {
     }
 }
 
-/// A [`LATENT_DIM`] square matrix, row-major, read in place.
-pub type LatentRows = [[f32; LATENT_DIM]; LATENT_DIM];
+internal! {
+    /// A [`LATENT_DIM`] square matrix, row-major, read in place.
+    pub type LatentRows = [[f32; LATENT_DIM]; LATENT_DIM];
+}
 
 /// A validated model whose weights stay in the bytes it was read from.
 ///
 /// Only the latent rows of a linear `F` are copied out of the blob, by
-/// columns ([`KoopmanColumns`], 1152 bytes), as `f32` the filter can load
+/// columns (1152 bytes), as `f32` the filter can load
 /// directly; the MLP weights (the bulk of the blob) and the bilinear
 /// matrices are read in place as `&[f32]`.
 #[derive(Debug, Clone, Copy)]
@@ -277,12 +283,33 @@ fn dense<const I: usize, const O: usize, const B: usize>(
 }
 
 impl<'a> Model<'a> {
-    /// Reads a blob (see [`Blob::from_bytes`] for every check made); the
-    /// weights are borrowed from `bytes`, not copied.
+    /// Reads a blob; the weights are borrowed from `bytes`, not copied.
     ///
-    /// The weights must lie at a 4-byte aligned address (any heap buffer,
-    /// or [`crate::blob::Aligned`] for `include_bytes!`); otherwise
-    /// [`Error::BlobMisaligned`].
+    /// # Errors
+    ///
+    /// Every check of [`Blob::from_bytes`] (magic, version, sizes, CRC,
+    /// lengths, finiteness); [`Error::BlobMisaligned`] unless the weights
+    /// lie at a 4-byte aligned address (any heap buffer, or
+    /// [`crate::blob::Aligned`] for `include_bytes!`).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use estimator::{Error, Model};
+    ///
+    /// let mut bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../weights/rig.kkf"))?;
+    /// let model = Model::from_bytes(&bytes)?;
+    /// assert_eq!(model.blob().body.rig.name(), "simple");
+    ///
+    /// // One flipped bit in the weights: the CRC refuses the blob.
+    /// let last = bytes.len() - 5;
+    /// bytes[last] ^= 1;
+    /// assert_eq!(Model::from_bytes(&bytes).unwrap_err(), Error::BlobBadCrc);
+    /// // Not a blob at all; the start of one.
+    /// assert_eq!(Model::from_bytes(b"GIF89a, a picture").unwrap_err(), Error::BlobBadMagic);
+    /// assert_eq!(Model::from_bytes(&bytes[..6]).unwrap_err(), Error::BlobTruncated);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
         let blob = Blob::from_bytes(bytes)?;
         let arena: &'a [f32] =
@@ -328,79 +355,89 @@ impl<'a> Model<'a> {
         self.blob.body.family
     }
 
-    /// The bilinear family's latent step at `g = [y; q]` and its Jacobian:
-    /// `y' = F(q) y` with `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11`,
-    /// and the latent rows of `d y' / d g`, `[F(q), (F_1 + 2 q_1 F_11) y,
-    /// F_2 y]`, by columns (entry `[j][i]` is `d y'_i / d g_j`: the filter
-    /// sums along columns). `None` for a linear model (whose columns are
-    /// [`Model::koopman_columns`], the same at every `g`).
-    #[inline(never)]
-    pub fn bilinear_step(&self, g: &Aug) -> Option<(Latent, KoopmanColumns)> {
-        let [f0, f1, f2, f11] = self.bilinear?;
-        let (y, q) = g.split_first_chunk::<LATENT_DIM>()?;
-        let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
-        let q11 = q1 * q1;
-        let mut next = [0.0f32; LATENT_DIM];
-        let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
-        let dot = |row: &[f32; LATENT_DIM]| row.iter().zip(y).fold(0.0f32, |a, (w, v)| a + w * v);
-        for (i, n) in next.iter_mut().enumerate() {
-            let (r0, r1, r2, r11) = (f0.get(i)?, f1.get(i)?, f2.get(i)?, f11.get(i)?);
-            let (u0, u1, u2, u11) = (dot(r0), dot(r1), dot(r2), dot(r11));
-            *n = ((u0 + q1 * u1) + q2 * u2) + q11 * u11;
-            for (col, (((a, b), c), e)) in jac.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
-                if let Some(d) = col.get_mut(i) {
-                    *d = ((a + q1 * b) + q2 * c) + q11 * e;
+    internal! {
+        /// The bilinear family's latent step at `m = [y; q]` and its Jacobian:
+        /// `y' = F(q) y` with `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11`,
+        /// and the latent rows of `d y' / d g`, `[F(q), (F_1 + 2 q_1 F_11) y,
+        /// F_2 y]`, by columns (entry `[j][i]` is `d y'_i / d g_j`: the filter
+        /// sums along columns). `None` for a linear model (whose columns are
+        /// [`Model::koopman_columns`], the same at every `g`).
+        #[inline(never)]
+        pub fn bilinear_step(&self, m: &Aug) -> Option<(Latent, KoopmanColumns)> {
+            let [f0, f1, f2, f11] = self.bilinear?;
+            let (y, q) = m.split_first_chunk::<LATENT_DIM>()?;
+            let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
+            let q11 = q1 * q1;
+            let mut next = [0.0f32; LATENT_DIM];
+            let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
+            let dot = |row: &[f32; LATENT_DIM]| row.iter().zip(y).fold(0.0f32, |a, (w, v)| a + w * v);
+            for (i, n) in next.iter_mut().enumerate() {
+                let (r0, r1, r2, r11) = (f0.get(i)?, f1.get(i)?, f2.get(i)?, f11.get(i)?);
+                let (u0, u1, u2, u11) = (dot(r0), dot(r1), dot(r2), dot(r11));
+                *n = ((u0 + q1 * u1) + q2 * u2) + q11 * u11;
+                for (col, (((a, b), c), e)) in jac.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
+                    if let Some(d) = col.get_mut(i) {
+                        *d = ((a + q1 * b) + q2 * c) + q11 * e;
+                    }
+                }
+                let (dq1, dq2) = (u1 + 2.0 * q1 * u11, u2);
+                if let Some(d) = jac.get_mut(LATENT_DIM).and_then(|c| c.get_mut(i)) {
+                    *d = dq1;
+                }
+                if let Some(d) = jac.get_mut(LATENT_DIM + 1).and_then(|c| c.get_mut(i)) {
+                    *d = dq2;
                 }
             }
-            let (dq1, dq2) = (u1 + 2.0 * q1 * u11, u2);
-            if let Some(d) = jac.get_mut(LATENT_DIM).and_then(|c| c.get_mut(i)) {
-                *d = dq1;
-            }
-            if let Some(d) = jac.get_mut(LATENT_DIM + 1).and_then(|c| c.get_mut(i)) {
-                *d = dq2;
-            }
+            Some((next, jac))
         }
-        Some((next, jac))
     }
 
-    /// The latent rows of `F`, transposed: `C^T`, column `i` of row `j`
-    /// is `F_ij`.
-    #[inline]
-    pub fn koopman_columns(&self) -> &KoopmanColumns {
-        &self.ct
-    }
-
-    /// Updates whose gains the blob precomputes (`T`, see the blob's
-    /// "gain schedule").
-    #[inline]
-    pub fn schedule_steps(&self) -> u32 {
-        u32::from(self.blob.body.filter.schedule_steps)
-    }
-
-    /// Scheduled update `n` (`1..=T`): `K_n^T` (row `k`: how innovation `k`
-    /// moves `[y; p]`) and the parameters' standard deviations after it,
-    /// read in place. `None` outside the schedule.
-    #[inline]
-    pub fn scheduled_gain(
-        &self,
-        n: u32,
-    ) -> Option<(&'a [[f32; AUG_DIM]; LATENT_DIM], &'a [f32; PARAM_DIM])> {
-        if n == 0 || n > self.schedule_steps() {
-            return None;
+    internal! {
+        /// The latent rows of `F`, transposed: `C^T`, column `i` of row `j`
+        /// is `F_ij`.
+        #[inline]
+        pub fn koopman_columns(&self) -> &KoopmanColumns {
+            &self.ct
         }
-        let at = self.schedule_at + (n as usize - 1) * SCHEDULE_STEP_LEN;
-        let kt = rows::<LATENT_DIM, AUG_DIM>(self.arena, at).ok()?;
-        let std = rows::<1, PARAM_DIM>(self.arena, at + LATENT_DIM * AUG_DIM)
-            .ok()
-            .map(|[r]| r)?;
-        Some((kt, std))
     }
 
-    /// The schedule's tail, the filter after update `T` in two-stage form;
-    /// `None` without a schedule.
-    #[inline]
-    pub fn schedule_tail(&self) -> Option<&Tail<'a>> {
-        self.tail.as_ref()
+    internal! {
+        /// Updates whose gains the blob precomputes (`T`, see the blob's
+        /// "gain schedule").
+        #[inline]
+        pub fn schedule_steps(&self) -> u32 {
+            u32::from(self.blob.body.filter.schedule_steps)
+        }
+    }
+
+    internal! {
+        /// Scheduled update `n` (`1..=T`): `K_n^T` (row `k`: how innovation `k`
+        /// moves `[y; p]`) and the parameters' standard deviations after it,
+        /// read in place. `None` outside the schedule.
+        #[inline]
+        pub fn scheduled_gain(
+            &self,
+            n: u32,
+        ) -> Option<(&'a [[f32; AUG_DIM]; LATENT_DIM], &'a [f32; PARAM_DIM])> {
+            if n == 0 || n > self.schedule_steps() {
+                return None;
+            }
+            let at = self.schedule_at + (n as usize - 1) * SCHEDULE_STEP_LEN;
+            let kt = rows::<LATENT_DIM, AUG_DIM>(self.arena, at).ok()?;
+            let std = rows::<1, PARAM_DIM>(self.arena, at + LATENT_DIM * AUG_DIM)
+                .ok()
+                .map(|[r]| r)?;
+            Some((kt, std))
+        }
+    }
+
+    internal! {
+        /// The schedule's tail, the filter after update `T` in two-stage form;
+        /// `None` without a schedule.
+        #[inline]
+        pub fn schedule_tail(&self) -> Option<&Tail<'a>> {
+            self.tail.as_ref()
+        }
     }
 
     /// The decoded blob.
@@ -446,42 +483,66 @@ impl<'a> Model<'a> {
         }
     }
 
-    /// Element `(i, j)` of `F` (0 outside).
-    #[inline]
-    pub fn f(&self, i: usize, j: usize) -> f32 {
-        if j >= AUG_DIM {
-            return 0.0;
+    internal! {
+        /// Element `(i, j)` of `F` (0 outside).
+        #[inline]
+        pub fn f(&self, i: usize, j: usize) -> f32 {
+            if j >= AUG_DIM {
+                return 0.0;
+            }
+            self.blob.f().get(i * AUG_DIM + j).unwrap_or(0.0)
         }
-        self.blob.f().get(i * AUG_DIM + j).unwrap_or(0.0)
     }
 
-    /// One step of the augmented model, `p' = p`: for the linear family
-    /// `g' = F g`, that is `y' = C g` (the parameter rows of `F` are the
-    /// identity); for the bilinear `y' = F(q) y` ([`Model::bilinear_step`]).
-    pub fn advance(&self, g: &Aug) -> Aug {
-        let mut out = *g;
-        if self.bilinear.is_some() {
-            if let Some((y, _)) = self.bilinear_step(g) {
-                for (o, v) in out.iter_mut().zip(&y) {
-                    *o = *v;
+    internal! {
+        /// One step of the augmented model, `p' = p`: for the linear family
+        /// `g' = F g`, that is `y' = C g` (the parameter rows of `F` are the
+        /// identity); for the bilinear `y' = F(q) y` ([`Model::bilinear_step`]).
+        pub fn advance(&self, m: &Aug) -> Aug {
+            let mut out = *m;
+            if self.bilinear.is_some() {
+                if let Some((y, _)) = self.bilinear_step(m) {
+                    for (o, v) in out.iter_mut().zip(&y) {
+                        *o = *v;
+                    }
                 }
+                return out;
             }
-            return out;
+            for (i, o) in out.iter_mut().take(LATENT_DIM).enumerate() {
+                *o = self.ct.iter().zip(m).fold(0.0, |acc, (col, x)| {
+                    acc + col.get(i).copied().unwrap_or(0.0) * x
+                });
+            }
+            out
         }
-        for (i, o) in out.iter_mut().take(LATENT_DIM).enumerate() {
-            *o = self.ct.iter().zip(g).fold(0.0, |acc, (col, x)| {
-                acc + col.get(i).copied().unwrap_or(0.0) * x
-            });
-        }
-        out
     }
 
     /// Rolls the model forward from the raw state `x0` with parameters
     /// `params` (values, as [`crate::StepOutput::params`] reports them;
     /// the model runs on their coordinates), writing the raw
     /// (denormalised) states `x_1 .. x_n` into `out` (`n = out.len()`).
-    /// A parameter without a finite coordinate (a length of 0) is refused
-    /// with [`Error::NonFiniteInput`].
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFiniteInput`] for a state or a parameter without a
+    /// finite coordinate (a length of 0).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use estimator::blob::Aligned;
+    /// use estimator::Model;
+    ///
+    /// static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../weights/rig.kkf"));
+    /// let model = Model::from_bytes(&RIG.0)?;
+    ///
+    /// // A 1 m string released at 0.2 rad, undamped, for 2 s (50 steps of 0.04 s):
+    /// let mut xs = [[0.0f32; 2]; 50];
+    /// model.simulate(&[0.2, 0.0], &[1.0, 0.0], &mut xs)?;
+    /// // Its period is 2 s: a full swing later it is back near 0.2 rad.
+    /// assert!((xs[49][0] - 0.2).abs() < 0.02, "{:?}", xs[49]);
+    /// # Ok::<(), estimator::Error>(())
+    /// ```
     pub fn simulate(
         &self,
         x0: &State,
@@ -491,52 +552,58 @@ impl<'a> Model<'a> {
         self.simulate_coordinates(x0, &self.coordinates(params), out)
     }
 
-    /// The filter's coordinates of the parameter values `params` (see
-    /// [`crate::blob::Reading`]).
-    pub fn coordinates(&self, params: &[f32; PARAM_DIM]) -> [f32; PARAM_DIM] {
-        let mut q = [0.0; PARAM_DIM];
-        for ((q, p), spec) in q.iter_mut().zip(params).zip(&self.blob.body.params) {
-            *q = spec.coordinate(*p);
+    internal! {
+        /// The filter's coordinates of the parameter values `params` (see
+        /// [`crate::blob::Reading`]).
+        pub fn coordinates(&self, params: &[f32; PARAM_DIM]) -> [f32; PARAM_DIM] {
+            let mut q = [0.0; PARAM_DIM];
+            for ((q, p), spec) in q.iter_mut().zip(params).zip(&self.blob.body.params) {
+                *q = spec.coordinate(*p);
+            }
+            q
         }
-        q
     }
 
-    /// [`Model::simulate`] from the parameters' filter coordinates `q`
-    /// ([`crate::StepOutput::coordinate`]).
-    pub fn simulate_coordinates(
-        &self,
-        x0: &State,
-        q: &[f32; PARAM_DIM],
-        out: &mut [State],
-    ) -> Result<(), Error> {
-        if !(x0.iter().chain(q).all(|v| v.is_finite())) {
-            return Err(Error::NonFiniteInput);
-        }
-        let y0 = self.encode(&self.normalise(x0));
-        let mut g = [0.0; AUG_DIM];
-        for (d, s) in g.iter_mut().zip(y0.iter().chain(q)) {
-            *d = *s;
-        }
-        self.rollout_from(&g, out)
-    }
-
-    /// Rolls the augmented model forward from `[y; p]` = `g0` (a filter's
-    /// mean, [`crate::Estimator::forecast`]), writing the decoded raw
-    /// states `x_1 .. x_n` into `out`. A non-finite `g0` is refused with
-    /// [`Error::NonFiniteInput`].
-    pub fn rollout_from(&self, g0: &Aug, out: &mut [State]) -> Result<(), Error> {
-        if !g0.iter().all(|v| v.is_finite()) {
-            return Err(Error::NonFiniteInput);
-        }
-        let mut g = *g0;
-        for o in out.iter_mut() {
-            g = self.advance(&g);
-            let mut y = [0.0; LATENT_DIM];
-            for (d, s) in y.iter_mut().zip(&g) {
+    internal! {
+        /// [`Model::simulate`] from the parameters' filter coordinates `q`
+        /// ([`crate::StepOutput::coordinate`]).
+        pub fn simulate_coordinates(
+            &self,
+            x0: &State,
+            q: &[f32; PARAM_DIM],
+            out: &mut [State],
+        ) -> Result<(), Error> {
+            if !(x0.iter().chain(q).all(|v| v.is_finite())) {
+                return Err(Error::NonFiniteInput);
+            }
+            let y0 = self.encode(&self.normalise(x0));
+            let mut m = [0.0; AUG_DIM];
+            for (d, s) in m.iter_mut().zip(y0.iter().chain(q)) {
                 *d = *s;
             }
-            *o = self.denormalise(&self.decode(&y));
+            self.rollout_from(&m, out)
         }
-        Ok(())
+    }
+
+    internal! {
+        /// Rolls the augmented model forward from `[y; p]` = `g0` (a filter's
+        /// mean, [`crate::Estimator::forecast`]), writing the decoded raw
+        /// states `x_1 .. x_n` into `out`. A non-finite `g0` is refused with
+        /// [`Error::NonFiniteInput`].
+        pub fn rollout_from(&self, g0: &Aug, out: &mut [State]) -> Result<(), Error> {
+            if !g0.iter().all(|v| v.is_finite()) {
+                return Err(Error::NonFiniteInput);
+            }
+            let mut m = *g0;
+            for o in out.iter_mut() {
+                m = self.advance(&m);
+                let mut y = [0.0; LATENT_DIM];
+                for (d, s) in y.iter_mut().zip(&m) {
+                    *d = *s;
+                }
+                *o = self.denormalise(&self.decode(&y));
+            }
+            Ok(())
+        }
     }
 }

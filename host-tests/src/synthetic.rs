@@ -28,10 +28,10 @@
 //!   trust: [`permissive`].
 
 use estimator::blob::{
-    Activation, BILINEAR_ARENA_LEN, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Body, F_AT, F32s,
-    Family, FilterSpec, Header, N_LAYERS, Net, ParamSpec, Reading, Rig, layer_span,
+    Activation, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Body, F32s, Family, FilterSpec, Header,
+    Layout, N_LAYERS, Net, ParamSpec, Reading,
 };
-use estimator::{AUG_DIM, LATENT_DIM, PARAM_DIM};
+use estimator::{AUG_DIM, HIDDEN_DIM, LATENT_DIM, PARAM_DIM, Rig};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -40,6 +40,8 @@ use trainer_core::calibrate::{CalibrateConfig, blob_bytes, map_bytes, permissive
 /// The seed of the ChaCha8 stream the MLPs' weights are drawn from (the
 /// dynamics' basis is drawn from the next seed).
 pub const BILINEAR_SEED: u64 = 20_240_817;
+/// The synthetic blob's arena: hidden layers [`HIDDEN_DIM`] wide.
+pub const LAYOUT: Layout = Layout { hidden: HIDDEN_DIM };
 /// `rho`: every block's radius at `q_2 = 0`.
 pub const RADIUS: f64 = 0.99;
 /// `a`: the frequencies scale by `1 + a q_1`.
@@ -127,13 +129,13 @@ pub fn bilinear_matrices() -> [DMatrix<f64>; BILINEAR_BLOCKS] {
 }
 
 /// The arena: encoder and decoder layers (weight then bias, in
-/// [`layer_span`]'s order), then `F_0, F_1, F_2, F_11` row-major.
+/// [`Layout::layer_span`]'s order), then `F_0, F_1, F_2, F_11` row-major.
 fn arena() -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(BILINEAR_SEED);
-    let mut arena = vec![0.0f32; BILINEAR_ARENA_LEN];
+    let mut arena = vec![0.0f32; LAYOUT.bilinear_arena_len()];
     for net in [Net::Encoder, Net::Decoder] {
         for k in 0..N_LAYERS {
-            let Some((at, d_in, d_out)) = layer_span(net, k) else {
+            let Some((at, d_in, d_out)) = LAYOUT.layer_span(net, k) else {
                 continue;
             };
             let bound = 1.0 / (d_in as f32).sqrt();
@@ -146,7 +148,7 @@ fn arena() -> Vec<f32> {
         }
     }
     for (k, m) in bilinear_matrices().iter().enumerate() {
-        let at = F_AT + k * BILINEAR_BLOCK_LEN;
+        let at = LAYOUT.f_at() + k * BILINEAR_BLOCK_LEN;
         for i in 0..LATENT_DIM {
             for j in 0..LATENT_DIM {
                 arena[at + i * LATENT_DIM + j] = m[(i, j)] as f32;

@@ -11,13 +11,10 @@
 //! (to first order in `u`; Higham, *Accuracy and Stability of Numerical
 //! Algorithms*, 2nd ed., section 3.1).
 
-use estimator::blob::{
-    BILINEAR_ARENA_LEN, BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F32s, Family, Layout, Net,
-    arena_len,
-};
+use estimator::blob::{BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F32s, Family, Layout, Net};
 use estimator::{AUG_DIM, Aug, Error, Estimator, LATENT_DIM, Latent, Model, State};
 use host_tests::reference::{Dynamics, Reference};
-use host_tests::synthetic::{DT, bilinear_blob, bilinear_matrices};
+use host_tests::synthetic::{DT, LAYOUT, bilinear_blob, bilinear_matrices};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::SeedableRng;
@@ -73,7 +70,7 @@ fn the_synthetic_blob_reads_with_bounded_dynamics() {
     assert_eq!(m.family(), Family::Bilinear);
     assert_eq!(m.schedule_steps(), 0);
     assert!(m.schedule_tail().is_none());
-    assert_eq!(body.weights.len(), BILINEAR_ARENA_LEN);
+    assert_eq!(body.weights.len(), LAYOUT.bilinear_arena_len());
     let blob = m.blob();
     assert!(blob.f().is_empty() && blob.b().is_empty());
     assert!((0..BILINEAR_BLOCKS).all(|k| blob.bilinear(k).len() == BILINEAR_BLOCK_LEN));
@@ -144,7 +141,7 @@ fn a_bilinear_blob_that_does_not_fit_is_refused() {
     );
     assert_eq!(edited(|_, a| a.push(0.0)), Err(Error::BlobShapeMismatch));
     assert_eq!(
-        edited(|_, a| a.resize(arena_len(0), 0.0)),
+        edited(|_, a| a.resize(LAYOUT.arena_len(0), 0.0)),
         Err(Error::BlobShapeMismatch)
     );
     // The same arena declared linear: a linear arena is longer.
@@ -154,7 +151,7 @@ fn a_bilinear_blob_that_does_not_fit_is_refused() {
     );
     // A NaN in F_11 (the last matrix).
     assert_eq!(
-        edited(|_, a| a[BILINEAR_ARENA_LEN - 1] = f32::NAN),
+        edited(|_, a| a[LAYOUT.bilinear_arena_len() - 1] = f32::NAN),
         Err(Error::BlobNonFinite)
     );
     // A hidden width this build does not run, and a width it runs whose
@@ -183,7 +180,7 @@ fn a_narrow_blob_reads_in_its_own_layout() {
     let mut zeroed: Vec<f32> = wide.body.weights.iter().collect();
     for net in [Net::Encoder, Net::Decoder] {
         for k in 0..3 {
-            let (at, d_in, d_out) = Layout::WIDEST.layer_span(net, k).unwrap();
+            let (at, d_in, d_out) = LAYOUT.layer_span(net, k).unwrap();
             let (_, n_in, n_out) = narrow_layout.layer_span(net, k).unwrap();
             for i in 0..d_in {
                 for o in 0..d_out {
@@ -205,7 +202,7 @@ fn a_narrow_blob_reads_in_its_own_layout() {
             }
         }
     }
-    narrow.extend(wide.body.weights.iter().skip(Layout::WIDEST.f_at()));
+    narrow.extend(wide.body.weights.iter().skip(LAYOUT.f_at()));
     assert_eq!(narrow.len(), narrow_layout.bilinear_arena_len());
     let write = |hidden: u16, arena: &[f32]| {
         let mut b = wide;

@@ -43,14 +43,15 @@ fn edited(edit: impl FnOnce(&mut Vec<f32>, &mut estimator::blob::FilterSpec)) ->
 /// noise (the two-stage tail is exact only for static parameters).
 #[test]
 fn a_gain_schedule_that_does_not_fit_is_refused() {
-    use estimator::blob::{SCHEDULE_AT, SCHEDULE_STEP_LEN};
+    use estimator::blob::{Blob, SCHEDULE_STEP_LEN};
     use estimator::{AUG_DIM, LATENT_DIM, PARAM_DIM};
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
+    let schedule_at = m.blob().layout().schedule_at();
     let t = m.schedule_steps() as usize;
     assert_eq!(t, 63, "the shipped blob covers the protocol's 63 updates");
     // The tail: S~^-1, P~ (16 x 16 each), V_T (2 x 16), P_b,T (2 x 2).
-    let tail = SCHEDULE_AT + t * SCHEDULE_STEP_LEN;
+    let tail = schedule_at + t * SCHEDULE_STEP_LEN;
     let l2 = LATENT_DIM * LATENT_DIM;
     let pb = tail + 2 * l2 + PARAM_DIM * LATENT_DIM;
     // One update more than the arena holds.
@@ -60,7 +61,7 @@ fn a_gain_schedule_that_does_not_fit_is_refused() {
     );
     // A negative standard deviation (update 5's length std).
     assert_eq!(
-        edited(|a, _| a[SCHEDULE_AT + 4 * SCHEDULE_STEP_LEN + LATENT_DIM * AUG_DIM] = -0.1),
+        edited(|a, _| a[schedule_at + 4 * SCHEDULE_STEP_LEN + LATENT_DIM * AUG_DIM] = -0.1),
         Error::BlobNonFinite
     );
     // S~^-1 not symmetric; P~ with a negative variance; P_b not symmetric.
@@ -73,10 +74,9 @@ fn a_gain_schedule_that_does_not_fit_is_refused() {
         Error::BlobParamsNotStatic
     );
     // No schedule at all (and no tail): a valid blob.
-    use estimator::blob::Blob;
     let mut blob = Blob::from_bytes(&bytes).unwrap();
     blob.body.filter.schedule_steps = 0;
-    blob.body.weights = estimator::blob::F32s(&blob.body.weights.0[..SCHEDULE_AT * 4]);
+    blob.body.weights = estimator::blob::F32s(&blob.body.weights.0[..schedule_at * 4]);
     let mut buf = vec![0u8; bytes.len()];
     let out = blob.to_slice(&mut buf).unwrap();
     assert!(Blob::from_bytes(out).is_ok());

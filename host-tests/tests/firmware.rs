@@ -259,7 +259,7 @@ fn firmware_in_qemu_matches_the_host() {
                 worst = worst.max(d);
                 compared += 1;
             }
-            assert_eq!(w[10], h.trust.word(), "{line}");
+            assert_eq!(w[10], h.trust.as_str(), "{line}");
             assert_eq!(w[11], reasons_token(&h.trust), "{line}");
             reasons_seen += usize::from(!h.trust.reasons().is_empty());
         }

@@ -157,7 +157,7 @@ impl Row {
                 Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
             )
         };
-        let trusted = |a: &At| a.trust == "trusted";
+        let trusted = |a: &At| a.trust.is_trusted();
         self.recordings += 1;
         if off(first) || off(end) {
             self.wrong += 1;
@@ -205,12 +205,12 @@ fn rig_blob_off_distribution_suite() {
                     first.measured,
                     first.length,
                     first.effect,
-                    first.trust,
+                    first.trust.as_str(),
                     first.reasons,
                     first.consistency,
                     end.length,
                     end.effect,
-                    end.trust,
+                    end.trust.as_str(),
                     end.reasons,
                     end.consistency,
                     end.held,

@@ -112,6 +112,27 @@ fn per_step(budget: Duration, steps: usize, mut pass: impl FnMut()) -> (f64, usi
     (times[times.len() / 2], batches)
 }
 
+/// Our times, ns per step.
+struct Ours {
+    step: f64,
+    encoder: f64,
+    filter: f64,
+    step_tail: f64,
+    filter_tail: f64,
+    step_recursive: f64,
+    filter_recursive: f64,
+    /// Measured passes per figure.
+    batches: usize,
+}
+
+/// The peers' times, ns per step.
+struct Peers {
+    burn_encoder: f64,
+    f64_filter: f64,
+    adskalman_filter: f64,
+    step: f64,
+}
+
 /// Measures everything for about `seconds` in all.
 pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
     let xs = window();
@@ -120,54 +141,75 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         .map(|x| model.encode(&model.normalise(x)))
         .collect();
     let budget = Duration::from_secs_f64((seconds / 11.0).max(0.01));
-    let n = xs.len();
+    let ours = ours(model, &xs, &zs, budget);
+    let peers = peers(model, &xs, &zs, budget);
+    report(&ours, &peers, xs.len())
+}
 
-    let mut est = Estimator::new(model);
-    let (step_ns, batches) = per_step(budget, n, || {
+/// [`per_step`] of [`Estimator::step`] over `xs`, `est` reset each pass.
+fn steps(budget: Duration, est: &mut Estimator<'_>, xs: &[State]) -> (f64, usize) {
+    per_step(budget, xs.len(), || {
         est.reset();
-        for x in &xs {
+        for x in xs {
             black_box(est.step(black_box(x)).ok());
         }
-    });
-    let (encoder_ns, _) = per_step(budget, n, || {
-        for x in &xs {
+    })
+}
+
+/// [`per_step`] of [`Estimator::step_latent`] over `zs`, `est` reset each
+/// pass.
+fn latent_steps(budget: Duration, est: &mut Estimator<'_>, zs: &[Latent]) -> f64 {
+    per_step(budget, zs.len(), || {
+        est.reset();
+        for z in zs {
+            black_box(est.step_latent(black_box(z)).ok());
+        }
+    })
+    .0
+}
+
+/// Our times: the window's, after it, and without the gain schedule.
+fn ours(model: &Model<'_>, xs: &[State], zs: &[Latent], budget: Duration) -> Ours {
+    let mut est = Estimator::new(model);
+    let (step, batches) = steps(budget, &mut est, xs);
+    let (encoder, _) = per_step(budget, xs.len(), || {
+        for x in xs {
             black_box(model.encode(&model.normalise(black_box(x))));
         }
     });
-    let (filter_ns, _) = per_step(budget, n, || {
-        est.reset();
-        for z in &zs {
-            black_box(est.step_latent(black_box(z)).ok());
-        }
-    });
+    let filter = latent_steps(budget, &mut est, zs);
     let (after, zs_after, warm) = tail(model);
-    let (step_tail_ns, _) = per_step(budget, after.len(), || {
+    let (step_tail, _) = per_step(budget, after.len(), || {
         let mut e = warm.clone();
         for x in &after {
             black_box(e.step(black_box(x)).ok());
         }
     });
-    let (filter_tail_ns, _) = per_step(budget, after.len(), || {
+    let (filter_tail, _) = per_step(budget, after.len(), || {
         let mut e = warm.clone();
         for z in &zs_after {
             black_box(e.step_latent(black_box(z)).ok());
         }
     });
-
     let mut rec = Estimator::without_schedule(model);
-    let (step_recursive_ns, _) = per_step(budget, n, || {
-        rec.reset();
-        for x in &xs {
-            black_box(rec.step(black_box(x)).ok());
-        }
-    });
-    let (filter_recursive_ns, _) = per_step(budget, n, || {
-        rec.reset();
-        for z in &zs {
-            black_box(rec.step_latent(black_box(z)).ok());
-        }
-    });
+    let (step_recursive, _) = steps(budget, &mut rec, xs);
+    let filter_recursive = latent_steps(budget, &mut rec, zs);
+    Ours {
+        step,
+        encoder,
+        filter,
+        step_tail,
+        filter_tail,
+        step_recursive,
+        filter_recursive,
+        batches,
+    }
+}
 
+/// The peers' times over the window: burn's encoder, the f64 and the
+/// `adskalman` filters, and burn's encoder with the f64 filter.
+fn peers(model: &Model<'_>, xs: &[State], zs: &[Latent], budget: Duration) -> Peers {
+    let n = xs.len();
     let device = Device::flex();
     let act = model.blob().body.activation;
     let enc = Mlp::new(
@@ -183,20 +225,20 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
             .try_to_vec::<f32>()
             .unwrap_or_default()
     };
-    let (peer_burn_encoder_ns, _) = per_step(budget, n, || {
-        for x in &xs {
+    let (burn_encoder, _) = per_step(budget, n, || {
+        for x in xs {
             black_box(burn_encode(&model.normalise(black_box(x))));
         }
     });
     let first = zs.first().copied().unwrap_or_default();
-    let (peer_f64_filter_ns, _) = per_step(budget, n, || {
+    let (f64_filter, _) = per_step(budget, n, || {
         let mut r = Reference::new(model, &first);
         for z in zs.iter().skip(1) {
             black_box(r.step(black_box(z)));
         }
     });
     let ads = ads::Models::new(model);
-    let (peer_adskalman_filter_ns, _) = per_step(budget, n, || {
+    let (adskalman_filter, _) = per_step(budget, n, || {
         let mut state = ads.start(model, &first);
         for z in zs.iter().skip(1) {
             if let Some(next) = ads.step(&state, black_box(z)) {
@@ -205,36 +247,46 @@ pub fn run(model: &Model<'_>, seconds: f64) -> BenchReport {
         }
         black_box(state);
     });
-    let (peer_step_ns, _) = per_step(budget, n, || {
+    let (step, _) = per_step(budget, n, || {
         let Some(x0) = xs.first() else { return };
         let mut r = Reference::new(model, &burn_encode(&model.normalise(x0)));
         for x in xs.iter().skip(1) {
             black_box(r.step(&burn_encode(&model.normalise(x))));
         }
     });
+    Peers {
+        burn_encoder,
+        f64_filter,
+        adskalman_filter,
+        step,
+    }
+}
+
+/// The report of `ours` and `peers` over `steps` steps a pass.
+fn report(ours: &Ours, peers: &Peers, steps: usize) -> BenchReport {
     BenchReport {
-        step_ns,
-        encoder_ns,
-        filter_ns,
-        peer_burn_encoder_ns,
-        peer_f64_filter_ns,
-        peer_adskalman_filter_ns,
-        adskalman_speedup: peer_adskalman_filter_ns / filter_ns,
-        peer_step_ns,
-        step_speedup: peer_step_ns / step_ns,
-        encoder_speedup: peer_burn_encoder_ns / encoder_ns,
-        filter_speedup: peer_f64_filter_ns / filter_ns,
-        step_tail_ns,
-        filter_tail_ns,
-        step_tail_speedup: peer_step_ns / step_tail_ns,
-        filter_tail_speedup: peer_f64_filter_ns / filter_tail_ns,
-        step_recursive_ns,
-        filter_recursive_ns,
-        step_recursive_speedup: peer_step_ns / step_recursive_ns,
-        filter_recursive_speedup: peer_f64_filter_ns / filter_recursive_ns,
-        adskalman_recursive_speedup: peer_adskalman_filter_ns / filter_recursive_ns,
-        steps: n,
-        batches,
+        step_ns: ours.step,
+        encoder_ns: ours.encoder,
+        filter_ns: ours.filter,
+        peer_burn_encoder_ns: peers.burn_encoder,
+        peer_f64_filter_ns: peers.f64_filter,
+        peer_adskalman_filter_ns: peers.adskalman_filter,
+        adskalman_speedup: peers.adskalman_filter / ours.filter,
+        peer_step_ns: peers.step,
+        step_speedup: peers.step / ours.step,
+        encoder_speedup: peers.burn_encoder / ours.encoder,
+        filter_speedup: peers.f64_filter / ours.filter,
+        step_tail_ns: ours.step_tail,
+        filter_tail_ns: ours.filter_tail,
+        step_tail_speedup: peers.step / ours.step_tail,
+        filter_tail_speedup: peers.f64_filter / ours.filter_tail,
+        step_recursive_ns: ours.step_recursive,
+        filter_recursive_ns: ours.filter_recursive,
+        step_recursive_speedup: peers.step / ours.step_recursive,
+        filter_recursive_speedup: peers.f64_filter / ours.filter_recursive,
+        adskalman_recursive_speedup: peers.adskalman_filter / ours.filter_recursive,
+        steps,
+        batches: ours.batches,
     }
 }
 

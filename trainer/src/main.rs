@@ -39,7 +39,7 @@ enum Cmd {
     #[command(after_help = cli::EXIT_CODES)]
     Export(cli::export::Args),
     /// Calibrates a blob's trust verdict on held-out rollouts (and upgrades
-    /// a blob of format 6 or 7).
+    /// a blob of format 6 to 9).
     #[command(after_help = cli::EXIT_CODES)]
     Calibrate(cli::calibrate::Args),
     /// Runs the on-device estimator over each rollout of a CSV.
@@ -51,8 +51,9 @@ enum Cmd {
     /// Turns measured recordings into the project's CSV (rollouts 1, 2, ...).
     #[command(after_help = cli::EXIT_CODES)]
     Import(cli::import::Args),
-    /// Runs the estimator on data, then finds which physical effect explains
-    /// what the model leaves.
+    /// Diagnoses each recording's swings: the turning points, the energy
+    /// lost between them, the effect that explains it and the length the
+    /// period gives for the declared rig.
     #[command(after_help = cli::EXIT_CODES)]
     Diagnose(cli::diagnose::Args),
     /// The whole loop on measured data: import, train the declared model

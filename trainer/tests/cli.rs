@@ -631,6 +631,38 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     // quality (the models' figures are in the closing notes).
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    let (spec, gapped) = gapped_lab_recording(d);
+    let out = d.join("loop");
+    run_ok(
+        koopman()
+            .args(["close-loop", "--quiet", "--iterations", "20", "--rig"])
+            .args(["simple", "--g", "9.81", "--out"])
+            .arg(&out)
+            .arg(&gapped),
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rec = &r["recordings"][0];
+    assert_diagnosed_and_corrected(&r, &spec);
+    assert_length_read_for_the_rig(&out, rec, &spec);
+    assert_scored_on_the_held_out_part(rec);
+    for f in [
+        "report.md",
+        "before_after.png",
+        "declared/model.kkf",
+        "with-effect/model.kkf",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    assert_noise_errs_least(&r);
+    assert_trained_alone_the_same(d, &out, &r);
+}
+
+/// Seed 3's lab recording of viscous damping with an offset, its spec,
+/// and the file of its first 40 s, then a gap of 12 s and the rest (as an
+/// encoder logged per count leaves when the swing dies out): the loop
+/// uses the part before the gap.
+fn gapped_lab_recording(d: &Path) -> (serde_json::Value, std::path::PathBuf) {
     run_ok(
         koopman()
             .args(["generate", "--lab", "3", "--out"])
@@ -638,12 +670,8 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     );
     let truth: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("lab/lab.json")).unwrap()).unwrap();
-    let spec = &truth[6];
+    let spec = truth[6].clone();
     assert_eq!(spec["case"], "viscous+offset");
-    let c_true = spec["effects"][0][1].as_f64().unwrap();
-    // Its first 40 s, then a gap of 12 s and the rest (as an encoder
-    // logged per count leaves when the swing dies out): the loop uses
-    // the part before the gap.
     let text = std::fs::read_to_string(d.join("lab").join(spec["file"].as_str().unwrap())).unwrap();
     let kept: Vec<&str> = text
         .lines()
@@ -656,16 +684,12 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         .collect();
     let gapped = d.join("gapped.csv");
     std::fs::write(&gapped, kept.join("\n")).unwrap();
-    let out = d.join("loop");
-    run_ok(
-        koopman()
-            .args(["close-loop", "--quiet", "--iterations", "20", "--rig"])
-            .args(["simple", "--g", "9.81", "--out"])
-            .arg(&out)
-            .arg(&gapped),
-    );
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    (spec, gapped)
+}
+
+/// The loop's diagnosis names the viscous term (its coefficient near the
+/// truth `spec`) and the offset, takes the offset out and adds the term.
+fn assert_diagnosed_and_corrected(r: &serde_json::Value, spec: &serde_json::Value) {
     let rec = &r["recordings"][0];
     let diag = &rec["diagnosis"];
     assert_eq!(diag["verdict"], "explained", "{diag:#}");
@@ -677,6 +701,7 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         .collect();
     assert_eq!(names, ["viscous", "offset"], "{diag:#}");
     // The coefficient within 10% of the truth (its CI is about 2% wide).
+    let c_true = spec["effects"][0][1].as_f64().unwrap();
     let c = diag["effects"][0]["coefficient"].as_f64().unwrap();
     assert!(
         (c - c_true).abs() < 0.1 * c_true,
@@ -689,8 +714,11 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         "{off}"
     );
     assert_eq!(r["effect_added"]["name"], "viscous");
-    // A string declared a string at Earth's g: its period reads its
-    // length within 1%, and the report says which length it is.
+}
+
+/// A string declared a string at Earth's g: its period reads its length
+/// within 1%, and the report in `out` says which length it is.
+fn assert_length_read_for_the_rig(out: &Path, rec: &serde_json::Value, spec: &serde_json::Value) {
     assert_eq!(spec["rig"], "simple");
     let (l, truth) = (
         rec["length_physics"].as_f64().unwrap(),
@@ -702,7 +730,11 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         md.contains("length (simple, m)") && md.contains("declared g = 9.81"),
         "{md}"
     );
-    // Held out: the 40 s before the gap at 0.05 s, the last third.
+}
+
+/// Held out: the 40 s before the gap at 0.05 s, the last third; the
+/// physics with the diagnosed term forecasts it better than without it.
+fn assert_scored_on_the_held_out_part(rec: &serde_json::Value) {
     assert!(
         (rec["gap_after_s"].as_f64().unwrap() - 40.0).abs() < 1e-6,
         "{rec:#}"
@@ -712,23 +744,16 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     for k in ["error_before", "error_after"] {
         assert!(rec[k].as_f64().unwrap().is_finite(), "{k}: {rec:#}");
     }
-    // The physics with the diagnosed term forecasts the held-out part
-    // better than without it.
     let (pb, pa) = (
         rec["physics_before"]["median"].as_f64().unwrap(),
         rec["physics_after"]["median"].as_f64().unwrap(),
     );
     assert!(pa < pb, "physics {pb} -> {pa}");
-    for f in [
-        "report.md",
-        "before_after.png",
-        "declared/model.kkf",
-        "with-effect/model.kkf",
-    ] {
-        assert!(out.join(f).exists(), "{f} missing");
-    }
-    // Each model's filter noise is the candidate whose forecasts on the
-    // first part err least.
+}
+
+/// Each model's filter noise is the candidate whose forecasts on the
+/// first part err least.
+fn assert_noise_errs_least(r: &serde_json::Value) {
     for k in ["noise_before", "noise_after"] {
         let n = &r[k];
         let best = n["candidates"]
@@ -741,10 +766,13 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
         assert_eq!(n["r_latent"].as_f64().unwrap(), best.0, "{k}: {n:#}");
         assert_eq!(n["candidates"].as_array().unwrap().len(), 9, "{k}: {n:#}");
     }
-    // The two models trained at once; the model with the effect, trained
-    // again alone from its saved config and exported with the noise the
-    // loop chose, is the same blob byte for byte (its initial weights
-    // depend on its seed only).
+}
+
+/// The two models trained at once; the model with the effect, trained
+/// again alone from its saved config and exported with the noise the
+/// loop chose, is the same blob byte for byte (its initial weights
+/// depend on its seed only).
+fn assert_trained_alone_the_same(d: &Path, out: &Path, r: &serde_json::Value) {
     let alone = d.join("alone");
     run_ok(
         koopman()

@@ -369,7 +369,7 @@ fn filter(
         for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
             line.hex(*v);
         }
-        line.str(out.trust.word()).str(" ");
+        line.str(out.trust.as_str()).str(" ");
         reasons(line, &out.trust);
         line.send();
         last = Some(out);
@@ -385,7 +385,7 @@ fn filter(
         line.str(" length=").dec(p[0]);
         line.str(" std=").dec(out.param_std[0]);
         line.str(" sigma=").dec(out.sigma[0]);
-        line.str(" trust=").str(out.trust.word()).str(" ");
+        line.str(" trust=").str(out.trust.as_str()).str(" ");
         reasons(line, &out.trust);
         line.str(" window_steps=").uint(window_steps);
         line.str(" window_ticks=").uint(window_ticks);

@@ -49,7 +49,7 @@ impl Estimator<'_> {
         if self.model.family() == Family::Bilinear {
             return self.predict_only_bilinear(p);
         }
-        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        let y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
         self.predict_only_with(p, y, self.model.koopman_columns())
     }
 
@@ -59,7 +59,7 @@ impl Estimator<'_> {
     fn predict_only_bilinear(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
         let (y, ct) = self
             .model
-            .bilinear_step(&self.g)
+            .bilinear_step(&self.mean)
             .ok_or(Error::BlobShapeMismatch)?;
         self.predict_only_with(p, y, &ct)
     }
@@ -73,9 +73,9 @@ impl Estimator<'_> {
         ct: &KoopmanColumns,
     ) -> Result<(Aug, Cov), Error> {
         let spec = &self.model.blob().body.filter;
-        let mut g = self.g;
-        for (gi, yi) in g.iter_mut().zip(&y) {
-            *gi = *yi;
+        let mut m = self.mean;
+        for (mi, yi) in m.iter_mut().zip(&y) {
+            *mi = *yi;
         }
         let n = latent_rows_of_fp(ct, p);
         let mut pyy = upper_of_nct(&n, ct);
@@ -103,9 +103,9 @@ impl Estimator<'_> {
             }
         }
         mirror_upper(&mut out);
-        let finite = out.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
+        let finite = out.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
         if finite {
-            Ok((g, out))
+            Ok((m, out))
         } else {
             Err(Error::FilterNonFinite)
         }
@@ -135,7 +135,7 @@ impl Estimator<'_> {
     fn predict_update_bilinear(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
         let (y, ct) = self
             .model
-            .bilinear_step(&self.g)
+            .bilinear_step(&self.mean)
             .ok_or(Error::BlobShapeMismatch)?;
         let mut nu = *z;
         for (v, yi) in nu.iter_mut().zip(&y) {
@@ -161,9 +161,9 @@ impl Estimator<'_> {
         let spec = &self.model.blob().body.filter;
 
         // Predict the mean: y' = C g (or F(q) y);  p' = p.
-        let mut g = self.g;
-        for (gi, yi) in g.iter_mut().zip(&y) {
-            *gi = *yi;
+        let mut m = self.mean;
+        for (mi, yi) in m.iter_mut().zip(&y) {
+            *mi = *yi;
         }
 
         // Predict the covariance: N = C P (the latent rows of F P), then
@@ -222,11 +222,11 @@ impl Estimator<'_> {
                     .zip(&si),
             );
         }
-        for (((gi, zi), ri), wi) in g.iter_mut().zip(z).zip(&spec.r).zip(&w) {
-            *gi = zi - ri * wi;
+        for (((mi, zi), ri), wi) in m.iter_mut().zip(z).zip(&spec.r).zip(&w) {
+            *mi = zi - ri * wi;
         }
-        for (gi, mta) in g.iter_mut().skip(LATENT_DIM).zip(&mt) {
-            *gi += dot(mta, &nu);
+        for (mi, mta) in m.iter_mut().skip(LATENT_DIM).zip(&mt) {
+            *mi += dot(mta, &nu);
         }
 
         // Covariance by blocks. Joseph's form
@@ -313,7 +313,7 @@ impl Estimator<'_> {
         }
 
         // Is anything NaN or infinite?
-        let finite = p.iter().fold(all_finite(&g), |ok, r| ok & all_finite(r));
+        let finite = p.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
         if !finite {
             return Err(Error::FilterNonFinite);
         }
@@ -326,7 +326,7 @@ impl Estimator<'_> {
                 .enumerate()
                 .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
         if variances_ok {
-            Ok((g, p))
+            Ok((m, p))
         } else {
             Err(Error::FilterNotPositiveDefinite)
         }

@@ -6,7 +6,7 @@
 //! measurement); the verdict is [`crate::trust`]'s.
 //!
 //! # Notation (the maths is the spec)
-//! - state `g = [y; p]`: `y` the [`LATENT_DIM`] latent, `p` the
+//! - state `m = [y; p]`: `y` the [`LATENT_DIM`] latent, `p` the
 //!   [`PARAM_DIM`] physical parameters; [`AUG_DIM`] in all.
 //! - `F`: the augmented Koopman matrix from the blob (its `p` rows are the
 //!   identity: parameters are static).
@@ -17,7 +17,7 @@
 //!
 //! Predict: `g = F g`, `P = F P F^T + Q`. Update: `S = H P H^T + R`,
 //! `K = P H^T S^-1`, `g += K (z - H g)`, `P = (I - K H) P`: the textbook
-//! filter, which `trainer::reference` runs in f64 as the tests' oracle.
+//! filter, which `trainer_core::reference` runs in f64 as the tests' oracle.
 //!
 //! How this crate computes it (same numbers, less work; see
 //! `Estimator::predict_update`): `S = L D L^T` (no square roots) and
@@ -31,8 +31,8 @@
 //! # Three ways to the same numbers
 //! The covariance recursion (`P`, `S`, `K`) does not depend on the
 //! measurements, so for a given blob the gains are the same on every
-//! trajectory. With a blob that carries a gain schedule (the shipped one
-//! does, for the protocol's 63 updates):
+//! trajectory. With a blob that carries a gain schedule (the protocol blob,
+//! `weights/pendulum.kkf`, does, for its 63 updates):
 //! 1. updates `1..=T` apply the blob's precomputed `K_n` (computed in f64
 //!    at export): `g = F g + K_n (z - H F g)`, about 600 multiply-adds;
 //! 2. after update `T` the filter runs in Friedland's two-stage form,
@@ -56,24 +56,26 @@
 //!
 //! `p` holds the parameters' coordinates `q`; [`StepOutput::params`] reads
 //! them through each parameter's [`Reading`](crate::blob::Reading) (the
-//! shipped length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
+//! protocol blob's length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
 //! gives them as they are. Corrections, sigma and the trust verdict stay
-//! in the coordinates. While the swing is too small to read (below the
-//! blob's smallest trusted), the three report the filter as it was after
-//! the last measurement of a swing wide enough, not as it is
-//! ([`StepOutput::held`]); [`Estimator::mean`] is always the filter's.
+//! in the coordinates. While the swing is too small to read the three are
+//! held ([`StepOutput::held`]; the swings are defined in `trust::swing`);
+//! [`Estimator::mean`] is always the filter's.
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
 mod full;
 mod kernels;
+mod output;
 mod scheduled;
 mod two_stage;
+
+pub use output::StepOutput;
 
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
-use crate::trust::{self, Checks, EnvelopeWindow, Spread, SwingWindow, Trust};
+use crate::trust::{EnvelopeWindow, Spread, SwingWindow};
 use crate::trust::{Consistency, Kinematics};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
 
@@ -85,96 +87,6 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 /// Largest magnitude a raw measurement may have; larger is refused as not
 /// a real reading (an angle of 1e6 rad is a broken sensor, not a swing).
 pub const MAX_ABS_INPUT: f32 = 1.0e6;
-
-/// What one step reports.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StepOutput {
-    /// Index of the measurement just consumed (0 for the first).
-    pub t: u32,
-    /// Parameter estimates: the filter's coordinates read through each
-    /// parameter's [`Reading`](crate::blob::Reading) (a length scaled to
-    /// the declared gravity, [`Estimator::with_gravity`]).
-    pub params: [f32; PARAM_DIM],
-    /// Their standard deviations, to first order: `|dp/dq|` times the
-    /// coordinate's as calibrated at export, `sqrt((a s)^2 + b^2)` with `s`
-    /// = [`StepOutput::coordinate_std`] and `a`, `b` the blob's
-    /// [`TrustSpec`](crate::blob::TrustSpec) scale and floor (the filter's
-    /// own `P` leaves out the model's error).
-    pub param_std: [f32; PARAM_DIM],
-    /// The filter's coordinates `q` of the parameters (the `p` part of the
-    /// mean, or the held one: [`StepOutput::held`]; equal to `params` at
-    /// both ends of their training ranges).
-    pub coordinate: [f32; PARAM_DIM],
-    /// The filter's standard deviations of the coordinates, `sqrt(diag P)`
-    /// (or the held ones).
-    pub coordinate_std: [f32; PARAM_DIM],
-    /// The correction this step made to each coordinate.
-    pub correction: [f32; PARAM_DIM],
-    /// Population standard deviation of the corrections made at
-    /// `t >= burn_in` so far (0 before there are any), in the coordinates:
-    /// what the trust verdict is calibrated on.
-    pub sigma: [f32; PARAM_DIM],
-    /// The verdict, with its reasons ([`crate::trust`]).
-    pub trust: Trust,
-    /// The most measurements off the training envelope among any
-    /// [`WINDOW`](crate::WINDOW) consecutive ones since the start (within
-    /// the first window, those off so far): what the envelope check
-    /// reads. The estimate holds what every measurement told it, so a
-    /// stretch off the envelope (a swing released wider than trained, a
-    /// knock) leaves it doubtful after the swing has returned.
-    pub off_envelope: u16,
-    /// The mean normalised innovation squared since the burn-in,
-    /// `nu^T S^-1 nu` with `nu = z - y'` the innovation and `S` its
-    /// covariance, over the updates whose recursion runs in full (every
-    /// update of the extended filter; the linear filter's only where it
-    /// runs without its gain schedule: a blob without one, or after a
-    /// gap): `None` before any. A model that fits the
-    /// measurements keeps it near what held-out rollouts give; noise
-    /// heavier than trained, friction or a torque the model lacks, or
-    /// measurements at another interval raise it.
-    pub nis: Option<f32>,
-    /// What the consistency check reads: [`StepOutput::nis`] scaled by
-    /// the blob's law for the length and the widest swing
-    /// ([`crate::trust::consistency_statistic`]; the mean itself for a
-    /// blob whose law is `[0, 0]`; `None` before any innovation, or where
-    /// the law reads a swing and only encoded measurements were given:
-    /// the check passes).
-    pub consistency: Option<f32>,
-    /// The change of the measured angle over the change the measured
-    /// rates predict, `dt` apart, least squares since the start
-    /// ([`crate::trust`]): 1 for measurements at the blob's interval with
-    /// the rate in rad/s (`None` until the rate has moved, or when only
-    /// encoded measurements were given).
-    pub rate_ratio: Option<f32>,
-    /// The widest swing since the start: the largest half range of
-    /// `theta` over any [`WINDOW`](crate::WINDOW) to 2
-    /// [`WINDOW`](crate::WINDOW) measurements (NaN when only encoded
-    /// measurements were given); what the swing check reads.
-    pub swing: f32,
-    /// The swing's largest unevenness so far: how far the middle of the
-    /// range of `theta` over [`WINDOW`](crate::WINDOW) to 2
-    /// [`WINDOW`](crate::WINDOW) measurements lies from zero, as a share
-    /// of its half, the largest read while that swing was at least the
-    /// blob's smallest trusted (`None` before one is measured: see
-    /// [`crate::trust`]).
-    pub unevenness: Option<f32>,
-    /// Whether the parameters, their standard deviations and the
-    /// coordinates are held: the recent swing (the half range of `theta`
-    /// over the last [`WINDOW`](crate::WINDOW) to 2
-    /// [`WINDOW`](crate::WINDOW) measurements, or over the two blocks of
-    /// [`WINDOW`](crate::WINDOW) that were full when the latest block
-    /// closed, whichever is wider: a long pendulum's wide swing never
-    /// reads small) is below the blob's smallest trusted, and these are
-    /// the filter's after the last measurement whose latest swing was
-    /// not. The filter runs on (a swing that grows again is read from
-    /// where it has got to); a swing never that wide is reported as it
-    /// is (and flagged
-    /// [`Reason::SmallSwing`](crate::trust::Reason::SmallSwing)). The
-    /// checks read the reported values (the range, the physical check,
-    /// the consistency law's length); sigma, the envelope's bin and the
-    /// innovations follow the running filter.
-    pub held: bool,
-}
 
 /// The estimator: a fixed-size filter state over one model.
 ///
@@ -188,7 +100,7 @@ pub struct StepOutput {
 #[derive(Debug, Clone)]
 pub struct Estimator<'m> {
     model: &'m Model<'m>,
-    g: Aug,
+    mean: Aug,
     /// `P` when the recursion runs here (without the schedule).
     p: Cov,
     /// The two-stage form after the schedule: `V` and `P_b`.
@@ -222,7 +134,7 @@ pub struct Estimator<'m> {
     g_ratio: f32,
     /// Whether the gravity is known: declared, or not needed (no declared
     /// parameter is read through it). Otherwise the verdict is
-    /// [`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared).
+    /// [`Reason::GravityUndeclared`](crate::Reason::GravityUndeclared).
     g_known: bool,
 }
 
@@ -232,7 +144,7 @@ impl<'m> Estimator<'m> {
     pub fn new(model: &'m Model<'m>) -> Self {
         Estimator {
             model,
-            g: [0.0; AUG_DIM],
+            mean: [0.0; AUG_DIM],
             p: [[0.0; AUG_DIM]; AUG_DIM],
             v: [[0.0; LATENT_DIM]; PARAM_DIM],
             pb: [[0.0; PARAM_DIM]; PARAM_DIM],
@@ -263,7 +175,10 @@ impl<'m> Estimator<'m> {
     /// pendulum's motion tells `g / L` only, so the length it reports is
     /// the trained model's times `g / Body::g`, and so is its standard
     /// deviation. The filter, its coordinates and the trust checks are
-    /// those of the trained model (the motion is the same). Refused with
+    /// those of the trained model (the motion is the same).
+    ///
+    /// # Errors
+    ///
     /// [`Error::InputBadGravity`] unless `g` is finite and positive.
     pub fn with_gravity(self, g: f32) -> Result<Self, Error> {
         let trained = self.model.blob().body.g;
@@ -312,9 +227,11 @@ impl<'m> Estimator<'m> {
         };
     }
 
-    /// Whether the next update applies a precomputed gain.
-    pub fn on_schedule(&self) -> bool {
-        self.uses_schedule() && self.started && self.t < self.model.schedule_steps()
+    internal! {
+        /// Whether the next update applies a precomputed gain.
+        pub fn on_schedule(&self) -> bool {
+            self.uses_schedule() && self.started && self.t < self.model.schedule_steps()
+        }
     }
 
     /// Whether the schedule and the two-stage form drive the updates (a
@@ -326,18 +243,21 @@ impl<'m> Estimator<'m> {
 
     /// The mean `[y; p]`.
     pub fn mean(&self) -> AugVector {
-        AugVector::from(self.g)
+        AugVector::from(self.mean)
     }
 
     /// Forecasts the raw states after the last measurement from the
     /// filter's mean `[y; p]` (not from the last measurement: the mean has
-    /// averaged its noise), writing `x_{n+1} ..` into `out`. Refused with
+    /// averaged its noise), writing `x_{n+1} ..` into `out`.
+    ///
+    /// # Errors
+    ///
     /// [`Error::FilterNotStarted`] before the first measurement.
     pub fn forecast(&self, out: &mut [State]) -> Result<(), Error> {
         if !self.started {
             return Err(Error::FilterNotStarted);
         }
-        self.model.rollout_from(&self.g, out)
+        self.model.rollout_from(&self.mean, out)
     }
 
     /// The covariance `P` after the last update, or `None` after a
@@ -388,17 +308,48 @@ impl<'m> Estimator<'m> {
         AugMatrix::from_data(ArrayStorage(p))
     }
 
-    /// `F` from the model.
-    pub fn f_matrix(&self) -> AugMatrix {
-        AugMatrix::from_fn(|i, j| self.model.f(i, j))
+    internal! {
+        /// `F` from the model.
+        pub fn f_matrix(&self) -> AugMatrix {
+            AugMatrix::from_fn(|i, j| self.model.f(i, j))
+        }
     }
 
     /// Consumes one raw measurement `(theta, theta_dot)`.
     ///
     /// The first measurement initialises `y = phi(x_0)` and the prior; each
-    /// later one predicts and updates. A non-finite or absurd measurement is
-    /// refused with [`Error::NonFiniteInput`] and the state is unchanged; so
-    /// is every other error.
+    /// later one predicts and updates.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFiniteInput`] for a measurement not finite or above
+    /// [`MAX_ABS_INPUT`]; a filter error if the arithmetic breaks down. On
+    /// any error the state is unchanged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use estimator::blob::Aligned;
+    /// use estimator::{Error, Estimator, Model, Reason, Trust};
+    ///
+    /// static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
+    /// let model = Model::from_bytes(&RIG.0)?;
+    /// // No gravity declared: the length is read at the blob's g.
+    /// let mut est = Estimator::new(&model);
+    /// let mut xs = [[0.0f32; 2]; 100];
+    /// model.simulate(&[0.3, 0.0], &[0.5, 0.0], &mut xs)?;
+    /// let mut out = est.step(&[0.3, 0.0])?;
+    /// for x in &xs {
+    ///     out = est.step(x)?;
+    /// }
+    /// assert!(out.trust.reasons().contains(&Reason::GravityUndeclared));
+    ///
+    /// // A broken reading is refused, and the filter is as it was.
+    /// assert_eq!(est.step(&[f32::NAN, 0.0]).unwrap_err(), Error::NonFiniteInput);
+    /// assert_eq!(est.step(&[2.0e6, 0.0]).unwrap_err(), Error::NonFiniteInput);
+    /// assert_eq!(est.mean(), est.clone().mean());
+    /// # Ok::<(), estimator::Error>(())
+    /// ```
     pub fn step(&mut self, raw: &State) -> Result<StepOutput, Error> {
         if !raw
             .iter()
@@ -420,16 +371,40 @@ impl<'m> Estimator<'m> {
     /// for an unbroken run, so the first prediction rebuilds `P` (on the
     /// schedule by running the recursion from the prior, about 15,300
     /// multiply-adds per update so far; after it from the two-stage form)
-    /// and every later update runs the whole recursion. Refused with
+    /// and every later update runs the whole recursion.
+    ///
+    /// # Errors
+    ///
     /// [`Error::FilterNotStarted`] before the first measurement; on any
     /// error the state is unchanged.
+    ///
+    /// # Examples
+    ///
+    /// A recording with 0.2 s missing (5 steps of 0.04 s) is bridged:
+    ///
+    /// ```
+    /// use estimator::blob::Aligned;
+    /// use estimator::{Error, Estimator, Model};
+    ///
+    /// static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
+    /// let model = Model::from_bytes(&RIG.0)?;
+    /// let mut est = Estimator::new(&model).with_gravity(9.81)?;
+    /// assert_eq!(est.predict().unwrap_err(), Error::FilterNotStarted);
+    ///
+    /// est.step(&[0.3, 0.0])?;
+    /// let before = est.step(&[0.29, -0.1])?;
+    /// let after = est.skip(5)?;
+    /// assert_eq!(after.t, before.t + 5);
+    /// assert!(after.coordinate_std[0] >= before.coordinate_std[0]); // nothing learned
+    /// # Ok::<(), estimator::Error>(())
+    /// ```
     pub fn predict(&mut self) -> Result<StepOutput, Error> {
         if !self.started {
             return Err(Error::FilterNotStarted);
         }
         let p = self.current_covariance()?;
-        let (g, p) = self.predict_only(&p)?;
-        self.g = g;
+        let (m, p) = self.predict_only(&p)?;
+        self.mean = m;
         self.p = p;
         self.param_std = sqrt_diag(&p, LATENT_DIM);
         self.bridged = true;
@@ -439,7 +414,11 @@ impl<'m> Estimator<'m> {
     }
 
     /// `n` steps of [`Estimator::predict`]; `n = 0` changes nothing and
-    /// reports the current state. Stops at the first error, with the
+    /// reports the current state.
+    ///
+    /// # Errors
+    ///
+    /// As [`Estimator::predict`]; it stops at the first error, with the
     /// steps before it kept.
     pub fn skip(&mut self, n: u32) -> Result<StepOutput, Error> {
         if !self.started {
@@ -463,15 +442,17 @@ impl<'m> Estimator<'m> {
         }
     }
 
-    /// The filter alone: consumes a measurement already encoded,
-    /// `z = phi(x_n)` (what [`Estimator::step`] does after encoding). A
-    /// non-finite `z` is refused with [`Error::NonFiniteInput`] and the
-    /// state is unchanged. Without the measured state the envelope check
-    /// has nothing to look at: it passes, as do the swing checks, the
-    /// rate check and a consistency check whose law reads the swing
-    /// ([`crate::trust::consistency_statistic`]); nothing is held.
-    pub fn step_latent(&mut self, z: &Latent) -> Result<StepOutput, Error> {
-        self.update(z, None)
+    internal! {
+        /// The filter alone: consumes a measurement already encoded,
+        /// `z = phi(x_n)` (what [`Estimator::step`] does after encoding). A
+        /// non-finite `z` is refused with [`Error::NonFiniteInput`] and the
+        /// state is unchanged. Without the measured state the envelope check
+        /// has nothing to look at: it passes, as do the swing checks, the
+        /// rate check and a consistency check whose law reads the swing
+        /// ([`crate::trust::consistency_statistic`]); nothing is held.
+        pub fn step_latent(&mut self, z: &Latent) -> Result<StepOutput, Error> {
+            self.update(z, None)
+        }
     }
 
     /// One measurement, encoded (`z`), raw and normalised (`x_n`, for the
@@ -482,12 +463,12 @@ impl<'m> Estimator<'m> {
         }
         let spec = &self.model.blob().body.filter;
         if !self.started {
-            let mut g = [0.0; AUG_DIM];
-            for (d, s) in g.iter_mut().zip(z.iter().chain(&spec.prior_mean)) {
+            let mut m = [0.0; AUG_DIM];
+            for (d, s) in m.iter_mut().zip(z.iter().chain(&spec.prior_mean)) {
                 *d = *s;
             }
             let p = full::prior_covariance(spec);
-            self.g = g;
+            self.mean = m;
             self.p = p;
             self.param_std = sqrt_diag(&p, LATENT_DIM);
             self.t = 0;
@@ -510,39 +491,39 @@ impl<'m> Estimator<'m> {
         // The normalised innovation where the recursion forms S^-1.
         let mut nis = None;
         let tail = self.model.schedule_tail().filter(|_| self.uses_schedule());
-        let (g, param_std) = match (tail, self.model.scheduled_gain(t)) {
+        let (m, param_std) = match (tail, self.model.scheduled_gain(t)) {
             (Some(tail), Some((kt, std))) => {
-                let g = self.scheduled_update(z, kt)?;
+                let m = self.scheduled_update(z, kt)?;
                 // After the last scheduled update the filter goes on in
                 // two-stage form from the blob's V_T and P_b,T.
                 if t == self.model.schedule_steps() {
                     (v, pb) = (*tail.v, *tail.pb);
                 }
-                (g, *std)
+                (m, *std)
             }
             (Some(tail), None) => {
-                let g;
-                (g, v, pb) = self.two_stage_update(z, tail)?;
-                (g, sqrt_diag(&pb, 0))
+                let m;
+                (m, v, pb) = self.two_stage_update(z, tail)?;
+                (m, sqrt_diag(&pb, 0))
             }
             (None, _) => {
                 let mut n = 0.0;
-                let (g, new_p) = self.predict_update(z, &mut n)?;
+                let (m, new_p) = self.predict_update(z, &mut n)?;
                 let std = sqrt_diag(&new_p, LATENT_DIM);
                 p = Some(new_p);
                 nis = Some(n);
-                (g, std)
+                (m, std)
             }
         };
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction.iter_mut().zip(
-            g.iter()
+            m.iter()
                 .skip(LATENT_DIM)
-                .zip(self.g.iter().skip(LATENT_DIM)),
+                .zip(self.mean.iter().skip(LATENT_DIM)),
         ) {
             *c = new - old;
         }
-        self.g = g;
+        self.mean = m;
         if let Some(p) = p {
             self.p = p;
         }
@@ -575,11 +556,11 @@ impl<'m> Estimator<'m> {
         // from the recent one (which lags): nothing the small swing told
         // the filter gets into the snapshot.
         if self.swing.push(theta, rate, min_swing) >= min_swing {
-            self.held = Some((*tail(&self.g), self.param_std));
+            self.held = Some((*tail(&self.mean), self.param_std));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
-        let q = tail(&self.g).first().copied().filter(|_| settled);
+        let q = tail(&self.mean).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
         self.window.push(!inside);
         self.worst_off = self.worst_off.max(self.window.count());
@@ -589,109 +570,23 @@ impl<'m> Estimator<'m> {
     /// `nu = z - y'`: how every update starts.
     #[inline(always)]
     fn predict_latent(&self, z: &Latent) -> (Latent, Latent) {
-        let y = combo(self.g.iter().copied().zip(self.model.koopman_columns()));
+        let y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
         let mut nu = *z;
         for (v, yi) in nu.iter_mut().zip(&y) {
             *v -= yi;
         }
         (y, nu)
     }
-
-    fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
-        let blob = self.model.blob();
-        let calib = &blob.body.trust;
-        // While the recent swing is below the smallest trusted, the
-        // estimate of the last swing that was not: a swing that small
-        // moves the filter by the model's error and the noise, not by
-        // what the length is.
-        let small = self.swing.recent().is_some_and(|s| s < calib.min_swing);
-        let held = self.held.filter(|_| small);
-        let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.g), self.param_std));
-        let mut params = [0.0; PARAM_DIM];
-        let mut param_std = [0.0; PARAM_DIM];
-        // Each parameter read at the blob's gravity (the length there is
-        // what the model's own error follows: the consistency law's).
-        let mut reads = [0.0; PARAM_DIM];
-        let specs = &blob.body.params;
-        for (((((((p, r), s), spec), q), q_std), a), b) in params
-            .iter_mut()
-            .zip(reads.iter_mut())
-            .zip(param_std.iter_mut())
-            .zip(specs)
-            .zip(&coordinate)
-            .zip(&coordinate_std)
-            .zip(&calib.std_scale)
-            .zip(&calib.std_floor)
-        {
-            let scale = if spec.scales_with_g {
-                self.g_ratio
-            } else {
-                1.0
-            };
-            *r = spec.read(*q);
-            *p = scale * *r;
-            let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
-            *s = scale * libm::fabsf(spec.slope(*q)) * calibrated;
-        }
-        let sigma = self.spread.sigma();
-        let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
-        let unevenness = self.swing.most_uneven();
-        let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
-        let swing = self.swing.widest();
-        let length = reads.first().copied().unwrap_or(f32::NAN);
-        let consistency = self
-            .consistency
-            .mean()
-            .and_then(|m| trust::consistency_statistic(m, length, swing, calib.nis_law));
-        let [lo, hi] = calib.range;
-        let checks = Checks {
-            corrections: self.spread.n,
-            settled: sigma.first().copied().unwrap_or(f32::INFINITY)
-                <= blob.body.filter.sigma_threshold,
-            physical: specs
-                .iter()
-                .zip(&params)
-                .all(|(spec, p)| !spec.declared || spec.physical(*p)),
-            in_range: q0 >= lo && q0 <= hi,
-            in_envelope: self.worst_off <= calib.envelope_max_off,
-            // These two move both ways and are calibrated from the
-            // WINDOW-th update on: before it they pass.
-            consistent: !full_window || consistency.is_none_or(|c| c <= calib.max_nis),
-            rate_ok: !full_window
-                || self
-                    .kinematics
-                    .ratio()
-                    .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
-            swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
-            even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
-            gravity_known: self.g_known,
-        };
-        StepOutput {
-            t: self.t,
-            params,
-            param_std,
-            coordinate,
-            coordinate_std,
-            correction,
-            sigma,
-            trust: checks.verdict(),
-            off_envelope: self.worst_off,
-            nis: self.consistency.mean(),
-            consistency,
-            rate_ratio: self.kinematics.ratio(),
-            swing: swing.unwrap_or(f32::NAN),
-            unevenness,
-            held: held.is_some(),
-        }
-    }
 }
 
-/// Runs the estimator over `xs` (raw states) and returns the output after
-/// the last one. The state after the call is the filter after `xs`.
-pub fn run<'m>(est: &mut Estimator<'m>, xs: &[State]) -> Result<StepOutput, Error> {
-    let mut last = Err(Error::InputBadLength);
-    for x in xs {
-        last = Ok(est.step(x)?);
+internal! {
+    /// Runs the estimator over `xs` (raw states) and returns the output after
+    /// the last one. The state after the call is the filter after `xs`.
+    pub fn run<'m>(est: &mut Estimator<'m>, xs: &[State]) -> Result<StepOutput, Error> {
+        let mut last = Err(Error::InputBadLength);
+        for x in xs {
+            last = Ok(est.step(x)?);
+        }
+        last
     }
-    last
 }

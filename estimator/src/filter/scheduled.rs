@@ -15,12 +15,12 @@ impl Estimator<'_> {
     ) -> Result<Aug, Error> {
         let (y, nu) = self.predict_latent(z);
         let dg = combo(nu.iter().copied().zip(kt));
-        let mut g = self.g;
-        for ((gi, pred), d) in g.iter_mut().zip(y.iter().chain(tail(&self.g))).zip(&dg) {
-            *gi = pred + d;
+        let mut m = self.mean;
+        for ((mi, pred), d) in m.iter_mut().zip(y.iter().chain(tail(&self.mean))).zip(&dg) {
+            *mi = pred + d;
         }
-        if all_finite(&g) {
-            Ok(g)
+        if all_finite(&m) {
+            Ok(m)
         } else {
             Err(Error::FilterNonFinite)
         }

@@ -80,12 +80,12 @@ impl Estimator<'_> {
         // The mean: y = y' + nu - R S~^-1 nu + V K_b nu = z - R S~^-1 nu + V K_b nu.
         let sn = combo(nu.iter().copied().zip(tail.si));
         let vk = combo(kb_nu.iter().copied().zip(&v));
-        let mut g = self.g;
-        for ((((gi, zi), r), s), e) in g.iter_mut().zip(z).zip(&spec.r).zip(&sn).zip(&vk) {
-            *gi = (zi - r * s) + e;
+        let mut next = self.mean;
+        for ((((ni, zi), r), s), e) in next.iter_mut().zip(z).zip(&spec.r).zip(&sn).zip(&vk) {
+            *ni = (zi - r * s) + e;
         }
-        for (gi, d) in g.iter_mut().skip(LATENT_DIM).zip(&kb_nu) {
-            *gi += d;
+        for (ni, d) in next.iter_mut().skip(LATENT_DIM).zip(&kb_nu) {
+            *ni += d;
         }
         // P_b = J P_b J^T + K_b S~ K_b^T with J = I - K_b U = I - N X^T,
         // then made exactly symmetric from its upper triangle.
@@ -97,7 +97,7 @@ impl Estimator<'_> {
         let [[b00, b01], [_, b11]] = nxn;
         let p01 = a01 + b01;
         let pb = [[a00 + b00, p01], [p01, a11 + b11]];
-        let ok = all_finite(&g)
+        let ok = all_finite(&next)
             && v.iter().all(|c| all_finite(c))
             && pb.iter().all(|r| all_finite(r))
             && pb
@@ -105,7 +105,7 @@ impl Estimator<'_> {
                 .enumerate()
                 .all(|(a, r)| r.get(a).is_none_or(|d| *d >= 0.0));
         if ok {
-            Ok((g, v, pb))
+            Ok((next, v, pb))
         } else {
             Err(Error::FilterNonFinite)
         }

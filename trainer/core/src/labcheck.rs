@@ -17,7 +17,7 @@
 //! measurements and at the end of the recording, against the truth.
 
 use anyhow::{Context, Result};
-use estimator::{Estimator, Model, StepOutput};
+use estimator::{Estimator, Model, StepOutput, Trust};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use crate::data::drawn::log_uniform;
 use crate::data::import::{self, ImportOptions};
 use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
-use crate::physics::{Effect, EffectKind, Rig};
+use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 use crate::protocol::WINDOW;
 use crate::track::track_each;
 
@@ -60,7 +60,7 @@ impl Default for LabCheckConfig {
 }
 
 /// The estimate at one point of a recording.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct At {
     /// Measurements seen.
     pub measured: usize,
@@ -70,23 +70,26 @@ pub struct At {
     pub std: f32,
     /// The second parameter (the blob's effect), when declared.
     pub effect: f32,
-    /// `trusted`, `untrusted` or `pending`.
-    pub trust: String,
+    /// The verdict (written as its word: `trusted`, `untrusted` or
+    /// `pending`).
+    #[serde(serialize_with = "trust_word")]
+    pub trust: Trust,
     /// Why not trusted.
     pub reasons: Vec<String>,
     /// The mean normalised innovation since the burn-in, where measured.
-    #[serde(default)]
     pub nis: Option<f32>,
     /// The rate's ratio to the angle's change, where measured.
-    #[serde(default)]
     pub rate_ratio: Option<f32>,
     /// The consistency statistic the check reads (the mean innovation
     /// scaled by the blob's law), where measured.
-    #[serde(default)]
     pub consistency: Option<f32>,
     /// Whether the estimate is held (the swing too small to read).
-    #[serde(default)]
     pub held: bool,
+}
+
+/// Writes a verdict as its word.
+fn trust_word<S: serde::Serializer>(trust: &Trust, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(trust.as_str())
 }
 
 impl At {
@@ -96,7 +99,7 @@ impl At {
             length: out.params[0],
             std: out.param_std[0],
             effect: out.params[1],
-            trust: out.trust.word().into(),
+            trust: out.trust.clone(),
             reasons: out
                 .trust
                 .reasons()
@@ -117,7 +120,7 @@ impl At {
 }
 
 /// One recording and what the estimator made of it.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Outcome {
     /// Its dissipation.
     pub effect: String,
@@ -220,7 +223,7 @@ pub fn draw(
     let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
     let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
     LabSpec {
-        case: Case::Viscous,
+        case: Case::of_dissipation(kind),
         length,
         rig,
         theta0,
@@ -253,9 +256,7 @@ pub fn estimate(
     };
     let mut fresh = Estimator::new(model);
     if let Some(g) = g {
-        fresh = fresh
-            .with_gravity(g as f32)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        fresh = fresh.with_gravity(g as f32)?;
     }
     let rec = spec.record(rng);
     let r = import::to_rollout(&rec, 0, &opts)?;
@@ -315,11 +316,11 @@ impl Counts {
             errors.push(e2);
             c.end_within_2 += usize::from(e2 <= 0.02);
             c.first_within_5 += usize::from(e1 <= 0.05);
-            let wrong = |e: f64, a: &At| e > 0.05 && a.trust == "trusted";
+            let wrong = |e: f64, a: &At| e > 0.05 && a.trust.is_trusted();
             c.wrong_trusted += usize::from(wrong(e1, &o.first) || wrong(e2, &o.end));
             if e2 <= 0.05 {
                 c.trusted_of_right[1] += 1;
-                c.trusted_of_right[0] += usize::from(o.end.trust == "trusted");
+                c.trusted_of_right[0] += usize::from(o.end.trust.is_trusted());
             }
         }
         c.median_end_error = crate::metrics::median(&mut errors);
@@ -408,14 +409,20 @@ pub fn markdown(f: &Figures) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use estimator::Reasons;
 
-    fn at(length: f32, trust: &str) -> At {
+    /// An estimate of `length`, trusted or untrusted.
+    fn at(length: f32, trusted: bool) -> At {
         At {
             measured: 64,
             length,
             std: 0.01,
             effect: 0.0,
-            trust: trust.into(),
+            trust: if trusted {
+                Trust::Trusted
+            } else {
+                Trust::Untrusted(Reasons::new())
+            },
             reasons: vec![],
             nis: None,
             rate_ratio: None,
@@ -443,13 +450,13 @@ mod tests {
     fn the_counts_are_what_the_outcomes_say() {
         let o = [
             // Right (1%) and trusted at both points.
-            outcome(0.1, at(1.01, "trusted"), at(1.01, "trusted")),
+            outcome(0.1, at(1.01, true), at(1.01, true)),
             // 4% after the window, 3% at the end, untrusted at the end.
-            outcome(0.3, at(1.04, "trusted"), at(0.97, "untrusted")),
+            outcome(0.3, at(1.04, true), at(0.97, false)),
             // 10% off and trusted after the window: wrong and trusted.
-            outcome(0.6, at(1.10, "trusted"), at(1.015, "trusted")),
+            outcome(0.6, at(1.10, true), at(1.015, true)),
             // 10% off at the end and untrusted: wrong, not trusted.
-            outcome(1.2, at(1.2, "untrusted"), at(0.9, "untrusted")),
+            outcome(1.2, at(1.2, false), at(0.9, false)),
         ];
         let f = figures(&o);
         let c = &f.all;
@@ -461,5 +468,28 @@ mod tests {
         // Each swing bin holds one recording.
         assert!(f.by_swing.iter().all(|(_, c)| c.n == 1), "{:?}", f.by_swing);
         assert!(markdown(&f).contains("| all | 4 | 2 (50%) | 2 (50%) | 1 (25%) | 2 (67%) |"));
+    }
+
+    /// A recording is labelled with the case of its dissipation.
+    #[test]
+    fn a_recording_is_labelled_by_its_dissipation() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let cfg = LabCheckConfig::default();
+        for (kind, range) in EFFECTS {
+            let spec = draw(&mut rng, &cfg, Rig::Simple, kind, range);
+            assert_eq!(spec.case.expected(), [kind]);
+        }
+    }
+
+    /// The JSON writes the verdict as its word.
+    #[test]
+    fn the_verdict_is_written_as_its_word() {
+        for (trusted, word) in [(true, "trusted"), (false, "untrusted")] {
+            let json = serde_json::to_string(&at(1.0, trusted)).unwrap();
+            assert!(
+                json.contains(&format!(r#""trust":"{word}","reasons":[]"#)),
+                "{json}"
+            );
+        }
     }
 }

@@ -4,10 +4,12 @@
 //! the diagnosis's, the closed loop's). Text uses DejaVu Sans from the
 //! system's fonts (Debian's `fonts-dejavu-core`).
 
+use std::ops::Range;
 use std::path::Path;
 
 use anyhow::Result;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -155,4 +157,59 @@ where
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
     legend(chart, pos)
+}
+
+/// A chart of values against time, s, on both axes in f64.
+pub type TimeChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// How a chart against time is framed: its caption (18 px) when it has
+/// one, the y axis's description and the width of the y labels' area, px.
+pub struct TimeFrame<'s> {
+    /// Above the chart, when given.
+    pub caption: Option<String>,
+    /// The y axis's description, e.g. `theta (rad)`.
+    pub y_desc: &'s str,
+    /// The width of the y labels' area, px.
+    pub y_labels: u32,
+}
+
+impl TimeFrame<'static> {
+    /// The frame of the measured angle against time.
+    pub fn theta(caption: Option<String>, y_labels: u32) -> Self {
+        TimeFrame {
+            caption,
+            y_desc: "theta (rad)",
+            y_labels,
+        }
+    }
+}
+
+/// A chart against time on `area` over `t` (x, labelled `t (s)`) and `y`,
+/// framed as `frame` says, its mesh drawn.
+pub fn time_chart<'a, DB>(
+    area: &'a DrawingArea<DB, Shift>,
+    frame: TimeFrame<'_>,
+    t: Range<f64>,
+    y: Range<f64>,
+) -> Result<TimeChart<'a, DB>>
+where
+    DB: DrawingBackend + 'a,
+{
+    let mut builder = ChartBuilder::on(area);
+    if let Some(caption) = frame.caption {
+        builder.caption(caption, ("sans-serif", 18));
+    }
+    let mut chart = builder
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(frame.y_labels)
+        .build_cartesian_2d(t, y)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("t (s)")
+        .y_desc(frame.y_desc)
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
 }

@@ -114,7 +114,7 @@ pub fn run(a: Args) -> Result<()> {
                 "rollout": r.id, "params": out.params, "param_std": out.param_std,
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
-                "trust": out.trust.word(), "trust_reasons": reasons, "steps": n,
+                "trust": out.trust.as_str(), "trust_reasons": reasons, "steps": n,
                 "predicted": tracked.predicted, "off_envelope": out.off_envelope,
                 "held": out.held,
                 "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
@@ -132,7 +132,7 @@ pub fn run(a: Args) -> Result<()> {
                 out.params[0],
                 out.param_std[0],
                 out.sigma[0],
-                out.trust.word(),
+                out.trust.as_str(),
                 if reasons.is_empty() {
                     String::new()
                 } else {

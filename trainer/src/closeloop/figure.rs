@@ -6,7 +6,9 @@ use anyhow::Result;
 use estimator::Model;
 use plotters::prelude::*;
 use trainer_core::data::Dataset;
-use trainer_core::plot::{COLOURS, Curve, bounds, curves as draw_curves, err, png};
+use trainer_core::plot::{
+    COLOURS, Curve, TimeFrame, bounds, curves as draw_curves, err, png, time_chart,
+};
 
 use super::{CloseLoopReport, forecast};
 use trainer_core::protocol::WINDOW;
@@ -52,27 +54,14 @@ pub fn close_loop(
             curves.push(("with the effect", sim(m)?, COLOURS[2].stroke_width(2)));
         }
         let (y0, y1) = bounds(curves.iter().flat_map(|c| c.1.iter().map(|p| p.1)));
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                format!(
-                    "{}: error {:.3} before, {} after",
-                    score.source.rsplit('/').next().unwrap_or(&score.source),
-                    score.error_before,
-                    score.error_after.map_or("-".into(), |e| format!("{e:.3}"))
-                ),
-                ("sans-serif", 18),
-            )
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(55)
-            .build_cartesian_2d(0f64..r.xs.len() as f64 * dt, y0..y1)
-            .map_err(err)?;
-        chart
-            .configure_mesh()
-            .x_desc("t (s)")
-            .y_desc("theta (rad)")
-            .draw()
-            .map_err(err)?;
+        let caption = format!(
+            "{}: error {:.3} before, {} after",
+            score.source.rsplit('/').next().unwrap_or(&score.source),
+            score.error_before,
+            score.error_after.map_or("-".into(), |e| format!("{e:.3}"))
+        );
+        let frame = TimeFrame::theta(Some(caption), 55);
+        let mut chart = time_chart(area, frame, 0f64..r.xs.len() as f64 * dt, y0..y1)?;
         draw_curves(&mut chart, curves, SeriesLabelPosition::UpperRight)?;
     }
     root.present().map_err(err)

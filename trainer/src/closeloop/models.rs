@@ -11,6 +11,7 @@ use indicatif::{MultiProgress, ProgressBar};
 use serde::Serialize;
 
 use trainer_core::data::Rollout;
+use trainer_core::physics::RigPhysics;
 
 use super::parts::Part;
 use super::{CloseLoopOptions, LENGTH_MARGIN, forecast};

@@ -9,6 +9,7 @@ use estimator::Model;
 
 use trainer_core::data::{Dataset, Rollout, Sidecar};
 use trainer_core::io::write_atomic;
+use trainer_core::physics::{Rig, RigPhysics};
 
 use super::models::NoiseChoice;
 use super::parts::Part;
@@ -89,7 +90,7 @@ fn lengths(r: &CloseLoopReport) -> String {
             "| {} | {:.4} | {:.4} | {:.4} | {} | {} | {} |\n",
             x.source,
             x.length_physics,
-            trainer_core::physics::Rig::Simple.length(r.options.g, w2),
+            Rig::Simple.length(r.options.g, w2),
             x.length_before,
             x.trusted_before,
             x.length_after.map_or("-".into(), |l| format!("{l:.4}")),

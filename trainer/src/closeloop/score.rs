@@ -7,7 +7,7 @@ use anyhow::Result;
 use estimator::Model;
 
 use trainer_core::data::{self, Rollout};
-use trainer_core::physics::{Effect, Pendulum};
+use trainer_core::physics::{Effect, Pendulum, RigPhysics};
 
 use super::parts::Part;
 use super::{CloseLoopOptions, RecordingScore, forecast};

@@ -9,7 +9,9 @@ use estimator::Model;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use trainer_core::data::Dataset;
-use trainer_core::plot::{COLOURS, Curve, bounds, colour, curves, err, legend, length_lines, png};
+use trainer_core::plot::{
+    COLOURS, Curve, TimeFrame, bounds, colour, curves, err, legend, length_lines, png, time_chart,
+};
 use trainer_core::protocol::{BURN_IN, DT};
 
 use super::score::{RolloutScore, lengths_of};
@@ -327,37 +329,20 @@ pub fn trajectories(
         let x0 = [r.xs[0][0] as f32, r.xs[0][1] as f32];
         let mut est = vec![[0.0f32; 2]; r.xs.len() - 1];
         let mut tru = est.clone();
-        model
-            .simulate(&x0, &[s.length_est, 0.0], &mut est)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        model
-            .simulate(&x0, &[l as f32, 0.0], &mut tru)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        model.simulate(&x0, &[s.length_est, 0.0], &mut est)?;
+        model.simulate(&x0, &[l as f32, 0.0], &mut tru)?;
         let (y0, y1) = bounds(
             r.xs.iter()
                 .map(|x| x[0])
                 .chain(est.iter().chain(&tru).map(|x| x[0] as f64)),
         );
         let t_end = r.xs.len() as f64 * dt;
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                format!(
-                    "L = {l}: estimate {:.2}, sigma {:.3e}",
-                    s.length_est, s.sigma
-                ),
-                ("sans-serif", 18),
-            )
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(55)
-            .build_cartesian_2d(0f64..t_end, y0..y1)
-            .map_err(err)?;
-        chart
-            .configure_mesh()
-            .x_desc("t (s)")
-            .y_desc("theta (rad)")
-            .draw()
-            .map_err(err)?;
+        let caption = format!(
+            "L = {l}: estimate {:.2}, sigma {:.3e}",
+            s.length_est, s.sigma
+        );
+        let frame = TimeFrame::theta(Some(caption), 55);
+        let mut chart = time_chart(area, frame, 0f64..t_end, y0..y1)?;
         let series: [Curve; 3] = [
             (
                 "measured (truth)",

@@ -12,6 +12,7 @@
 //!   then the rest of the trust verdict, calibrated on held-out rollouts
 //!   (`trainer_core::calibrate`).
 //! - [`baseline`]: the CBM's and MLP's burnpacks with their sidecars.
+//! - [`upgrade`]: blobs of earlier formats read and made current.
 
 use std::path::Path;
 
@@ -31,6 +32,7 @@ pub mod baseline;
 pub mod blob;
 pub mod refit;
 pub mod schedule;
+pub mod upgrade;
 
 use crate::learn::bilinear::Bilinear;
 use crate::learn::config::{ModelKind, TrainConfig};
@@ -329,7 +331,7 @@ impl Prepared {
                 .parts
                 .blob(&self.state.norm, &cfg, filter, params, open),
         )?;
-        let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let m = Model::from_bytes(&bytes)?;
         let mut sigmas = self
             .ds
             .rollouts

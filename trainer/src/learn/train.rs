@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};
@@ -16,7 +16,7 @@ use trainer_core::io::write_atomic;
 
 use super::bilinear::Bilinear;
 use super::config::{ModelKind, TrainConfig};
-use super::model::{Klm, Regressor, Trainable};
+use super::model::{Klm, Losses, Regressor, Trainable};
 use super::run::{Norm, RunPaths, RunState, device, load_model, training_data};
 
 /// Normalised windows and their parameters, ready to batch.
@@ -154,10 +154,7 @@ pub fn train_with(
     bar: ProgressBar,
 ) -> Result<RunState> {
     let kind = if resume {
-        let saved: TrainConfig = serde_json::from_str(
-            &std::fs::read_to_string(RunPaths::new(dir).config).context("no run to resume")?,
-        )?;
-        saved.model
+        saved_config(&RunPaths::new(dir))?.model
     } else {
         cfg.model
     };
@@ -167,6 +164,17 @@ pub fn train_with(
         ModelKind::Bilinear => train_model::<Bilinear>(dir, cfg, resume, bar),
     }
 }
+
+/// The config saved in a run directory.
+fn saved_config(paths: &RunPaths) -> Result<TrainConfig> {
+    Ok(serde_json::from_str(
+        &std::fs::read_to_string(&paths.config).context("no run to resume")?,
+    )?)
+}
+
+/// What a training starts from: its config, the model, the optimiser and
+/// the run's state.
+type Start<M> = (TrainConfig, M, ModuleOptimizer, RunState);
 
 fn train_model<M: Trainable>(
     dir: &Path,
@@ -185,63 +193,15 @@ fn train_model<M: Trainable>(
         INIT.lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     });
-    let saved: Option<TrainConfig> = if resume {
-        Some(serde_json::from_str(
-            &std::fs::read_to_string(&paths.config).context("no run to resume")?,
-        )?)
+    let saved = if resume {
+        Some(saved_config(&paths)?)
     } else {
         None
     };
     let ds = training_data(saved.as_ref().unwrap_or(&cfg))?;
-    let (cfg, mut model, mut optim, mut state) = if resume {
-        let cfg = saved.clone().context("no saved config")?;
-        let state: RunState = serde_json::from_str(
-            &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
-        )?;
-        let model: M = load_model(&paths, &cfg, &device)?;
-        let optim = adam(&cfg)
-            .init()
-            .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        // A kill between the log's append and the checkpoint leaves log lines
-        // past the checkpoint: drop them, they will be trained again.
-        let log = std::fs::read_to_string(&paths.log).unwrap_or_default();
-        let kept: String = log
-            .lines()
-            .enumerate()
-            .filter(|(i, l)| {
-                *i == 0
-                    || l.split(',')
-                        .next()
-                        .and_then(|v| v.parse::<usize>().ok())
-                        .is_some_and(|it| it <= state.iteration)
-            })
-            .map(|(_, l)| format!("{l}\n"))
-            .collect();
-        write_atomic(&paths.log, kept.as_bytes())?;
-        (cfg, model, optim, state)
-    } else {
-        std::fs::create_dir_all(dir)?;
-        write_atomic(
-            &paths.config,
-            serde_json::to_string_pretty(&cfg)?.as_bytes(),
-        )?;
-        device.seed(cfg.seed);
-        let model = M::init(&cfg, &device);
-        let norm = Norm::fit(&ds);
-        let state = RunState {
-            iteration: 0,
-            train_seconds: 0.0,
-            norm,
-            last_losses: [0.0; 4],
-        };
-        let [a, b, c] = M::PARTS;
-        write_atomic(
-            &paths.log,
-            format!("iteration,total,{a},{b},{c},seconds\n").as_bytes(),
-        )?;
-        let optim = adam(&cfg).init();
-        (cfg, model, optim, state)
+    let (cfg, mut model, mut optim, mut state) = match saved {
+        Some(saved) => resume_from::<M>(&paths, saved, &device)?,
+        None => start_fresh::<M>(dir, &paths, cfg, &ds, &device)?,
     };
     if cfg.threads > 0 {
         let _ = rayon::ThreadPoolBuilder::new()
@@ -249,14 +209,7 @@ fn train_model<M: Trainable>(
             .build_global();
     }
     let batcher = Batcher::new(&ds, &state.norm, &cfg)?;
-    bar.set_length(cfg.iterations as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{prefix}{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar.set_position(state.iteration as u64);
+    show_progress(&bar, &cfg, &state);
     let mut log = String::new();
     let start = Instant::now();
     let base_seconds = state.train_seconds;
@@ -264,18 +217,7 @@ fn train_model<M: Trainable>(
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
         let l = model.batch_losses(x, p, &cfg);
         init_guard.take();
-        let [pa, pb, pc] = &l.parts;
-        let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
-        // A loss that is no number ends the run before it reaches the
-        // checkpoint (which would hold weights that are no numbers either).
-        anyhow::ensure!(
-            values[0].is_finite(),
-            "{}: the loss is {} at iteration {}: the batch's least squares or its rollout diverged; try a larger --batch, --grad-clip or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
-            dir.display(),
-            values[0],
-            state.iteration + 1,
-            state.iteration - state.iteration % cfg.checkpoint_every
-        );
+        let values = finite_losses(&l, dir, &state, &cfg)?;
         let grads = GradientsParams::from_grads(l.total.backward(), &model);
         model = optim.step(cfg.lr_at(state.iteration), model, grads);
         state.iteration += 1;
@@ -295,16 +237,123 @@ fn train_model<M: Trainable>(
         ));
         bar.inc(1);
         if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
-            let mut old = std::fs::read(&paths.log).unwrap_or_default();
-            old.extend_from_slice(log.as_bytes());
-            write_atomic(&paths.log, &old)?;
-            log.clear();
-            let optim_bytes = optim.into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            save_checkpoint(&paths, &model, optim_bytes, &state)?;
+            checkpoint(&paths, &model, &optim, &state, &mut log)?;
         }
     }
     bar.finish();
     Ok(state)
+}
+
+/// A run to resume under its saved config `cfg`: the model, optimiser
+/// and state of its last checkpoint, the log trimmed to it.
+fn resume_from<M: Trainable>(
+    paths: &RunPaths,
+    cfg: TrainConfig,
+    device: &Device,
+) -> Result<Start<M>> {
+    let state: RunState = serde_json::from_str(
+        &std::fs::read_to_string(&paths.state).context("no checkpoint to resume from")?,
+    )?;
+    let model: M = load_model(paths, &cfg, device)?;
+    let optim = adam(&cfg)
+        .init()
+        .from_bytes(Bytes::from_bytes_vec(std::fs::read(&paths.optim)?))
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    // A kill between the log's append and the checkpoint leaves log lines
+    // past the checkpoint: drop them, they will be trained again.
+    let log = std::fs::read_to_string(&paths.log).unwrap_or_default();
+    let kept: String = log
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| {
+            *i == 0
+                || l.split(',')
+                    .next()
+                    .and_then(|v| v.parse::<usize>().ok())
+                    .is_some_and(|it| it <= state.iteration)
+        })
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    write_atomic(&paths.log, kept.as_bytes())?;
+    Ok((cfg, model, optim, state))
+}
+
+/// A fresh run of `cfg` on `ds` in `dir`: its config and the log's header
+/// written, the backend seeded, the model initialised.
+fn start_fresh<M: Trainable>(
+    dir: &Path,
+    paths: &RunPaths,
+    cfg: TrainConfig,
+    ds: &Dataset,
+    device: &Device,
+) -> Result<Start<M>> {
+    std::fs::create_dir_all(dir)?;
+    write_atomic(
+        &paths.config,
+        serde_json::to_string_pretty(&cfg)?.as_bytes(),
+    )?;
+    device.seed(cfg.seed);
+    let model = M::init(&cfg, device);
+    let norm = Norm::fit(ds);
+    let state = RunState {
+        iteration: 0,
+        train_seconds: 0.0,
+        norm,
+        last_losses: [0.0; 4],
+    };
+    let [a, b, c] = M::PARTS;
+    write_atomic(
+        &paths.log,
+        format!("iteration,total,{a},{b},{c},seconds\n").as_bytes(),
+    )?;
+    let optim = adam(&cfg).init();
+    Ok((cfg, model, optim, state))
+}
+
+/// Sets `bar` to count the iterations of `cfg` from `state`'s.
+fn show_progress(bar: &ProgressBar, cfg: &TrainConfig, state: &RunState) {
+    bar.set_length(cfg.iterations as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix}{elapsed_precise} [{bar:30}] {pos}/{len} {per_sec} eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_position(state.iteration as u64);
+}
+
+/// The batch's losses `[total, parts..]` as numbers; an error when the
+/// total is no number, which ends the run before it reaches the
+/// checkpoint (which would hold weights that are no numbers either).
+fn finite_losses(l: &Losses, dir: &Path, state: &RunState, cfg: &TrainConfig) -> Result<[f64; 4]> {
+    let [pa, pb, pc] = &l.parts;
+    let values = [&l.total, pa, pb, pc].map(|t| t.clone().into_scalar::<f32>() as f64);
+    anyhow::ensure!(
+        values[0].is_finite(),
+        "{}: the loss is {} at iteration {}: the batch's least squares or its rollout diverged; try a larger --batch, --grad-clip or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
+        dir.display(),
+        values[0],
+        state.iteration + 1,
+        state.iteration - state.iteration % cfg.checkpoint_every
+    );
+    Ok(values)
+}
+
+/// Appends `log` to the run's log (emptying it) and saves the model, the
+/// optimiser and the state.
+fn checkpoint<M: Trainable>(
+    paths: &RunPaths,
+    model: &M,
+    optim: &ModuleOptimizer,
+    state: &RunState,
+    log: &mut String,
+) -> Result<()> {
+    let mut old = std::fs::read(&paths.log).unwrap_or_default();
+    old.extend_from_slice(log.as_bytes());
+    write_atomic(&paths.log, &old)?;
+    log.clear();
+    let optim_bytes = optim.into_bytes().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    save_checkpoint(paths, model, optim_bytes, state)
 }
 
 #[cfg(test)]

@@ -134,7 +134,9 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
         let rate = s.draw.rates[rng.random_range(0..s.draw.rates.len())];
         let noise = rng.random_range(s.draw.noise[0]..=s.draw.noise[1]);
         let spec = LabSpec {
-            case: Case::Viscous,
+            case: effect
+                .as_ref()
+                .map_or(Case::Clean, |e| Case::of_dissipation(e.kind)),
             length,
             rig: s.rig,
             theta0,

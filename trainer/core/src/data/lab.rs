@@ -28,7 +28,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::import::Recording;
-use crate::physics::{Effect, EffectKind, Rig};
+use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 
 /// The frame or sample rates of the lab's recordings, Hz.
 pub const RATES: [f64; 5] = [12.0, 25.0, 30.0, 50.0, 100.0];
@@ -62,6 +62,18 @@ pub enum Case {
 }
 
 impl Case {
+    /// The case of the dissipation `kind` alone (viscous damping for an
+    /// effect that is no dissipation: a recording's label, never drawn).
+    pub fn of_dissipation(kind: EffectKind) -> Case {
+        match kind {
+            EffectKind::Coulomb => Case::Coulomb,
+            EffectKind::Drag => Case::Drag,
+            EffectKind::Viscous | EffectKind::Torque | EffectKind::Offset | EffectKind::Gain => {
+                Case::Viscous
+            }
+        }
+    }
+
     /// Every case, one recording each per seed.
     pub const ALL: [Case; 9] = [
         Case::Clean,

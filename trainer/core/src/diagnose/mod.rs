@@ -20,7 +20,7 @@ use serde::Serialize;
 pub mod energy;
 pub mod swings;
 
-use crate::physics::{EffectKind, Rig};
+use crate::physics::{EffectKind, Rig, RigPhysics};
 use crate::protocol::G;
 
 /// The gravity lengths are read at: declared by the user, or the

@@ -5,14 +5,17 @@
 //!
 //! **Which length.** The motion fixes only the equivalent simple length
 //! `l_eq = g / w0^2`; the rig says what length that is
-//! ([`Rig::length`]: `L = l_eq` for a string, `L = 3 l_eq / 2` for a
-//! rod). [`Rig`] is defined once, in the estimator crate, because the
-//! weights blob records it; it is re-exported here.
+//! ([`RigPhysics::length`]: `L = l_eq` for a string, `L = 3 l_eq / 2` for
+//! a rod). [`Rig`] is defined once, in the estimator crate, because the
+//! weights blob records it; it is re-exported here, its physics with
+//! [`RigPhysics`].
 
 pub mod effect;
+mod rig;
 
 pub use effect::{Effect, EffectKind, EffectRange};
 pub use estimator::rig::Rig;
+pub use rig::RigPhysics;
 
 use crate::protocol::{G, MASS, SUBSTEPS};
 

@@ -4,14 +4,15 @@
 //! estimate is held over a swing too small to read, are shaded and
 //! labelled with their reasons.
 
+use std::ops::Range;
 use std::path::Path;
 
 use anyhow::Result;
 use estimator::{StepOutput, Trust};
-use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::plot::{COLOURS, bounds, err, png};
+use crate::plot::{COLOURS, TimeChart, TimeFrame, bounds, err, png, time_chart};
 
 /// Most lines of the key to the shading.
 const KEY_LINES: usize = 8;
@@ -105,67 +106,82 @@ fn fill(label: &str, labels: &[String]) -> RGBAColor {
     shades[k % shades.len()].mix(0.25)
 }
 
-/// Shades each span of `spans` over `[y0, y1]` in its label's fill.
-fn shade<'a, DB>(
-    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
-    spans: &[Span],
-    labels: &[String],
-    [y0, y1]: [f64; 2],
-) -> Result<()>
-where
-    DB: DrawingBackend + 'a,
-{
-    chart
-        .draw_series(spans.iter().map(|s| {
-            Rectangle::new(
-                [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
-                fill(&s.label, labels).filled(),
-            )
-        }))
-        .map_err(err)?;
-    Ok(())
+/// A panel's drawing area.
+type Area<'b> = DrawingArea<BitMapBackend<'b>, Shift>;
+
+/// What the panels of one figure share: the trace, the spans to shade
+/// with their distinct labels (`pending` aside), and the time axis.
+struct Panels<'t> {
+    trace: &'t Trace<'t>,
+    spans: Vec<Span>,
+    labels: Vec<String>,
+    t: Range<f64>,
 }
 
-/// Draws the figure of `trace` into `path` (PNG).
-pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
-    let panels = 2 + usize::from(trace.effect.is_some());
-    let spans = marked_spans(&trace.steps);
-    let mut labels: Vec<String> = Vec::new();
-    for s in &spans {
-        if s.label != "pending" && !labels.contains(&s.label) {
-            labels.push(s.label.clone());
+impl<'t> Panels<'t> {
+    fn new(trace: &'t Trace<'t>) -> Self {
+        let spans = marked_spans(&trace.steps);
+        let mut labels: Vec<String> = Vec::new();
+        for s in &spans {
+            if s.label != "pending" && !labels.contains(&s.label) {
+                labels.push(s.label.clone());
+            }
+        }
+        let t_end = trace.steps.last().map_or(1.0, |s| s.0);
+        let t_start = trace.steps.first().map_or(0.0, |s| s.0);
+        Panels {
+            trace,
+            spans,
+            labels,
+            t: t_start..t_end.max(t_start + 1e-6),
         }
     }
-    // The key: one line per verdict, below the panels.
-    let key_lines = (labels.len() + 1).min(KEY_LINES);
-    let root = png(
-        path,
-        (1400, 260 * panels as u32 + 50 + 22 * key_lines as u32),
-    )?;
-    let (head, body) = root.split_vertically(40);
-    head.draw(&Text::new(
-        trace.title.clone(),
-        (10, 10),
-        ("sans-serif", 20).into_font(),
-    ))
-    .map_err(err)?;
-    let (body, foot) = body.split_vertically(260 * panels as u32);
-    let areas = body.split_evenly((panels, 1));
-    let t_end = trace.steps.last().map_or(1.0, |s| s.0);
-    let t_start = trace.steps.first().map_or(0.0, |s| s.0);
-    let xr = t_start..t_end.max(t_start + 1e-6);
-    // Panel: a parameter with its 2-std band.
-    let param = |area: &DrawingArea<BitMapBackend<'_>, _>, k: usize, label: &str| -> Result<()> {
-        let pts: Vec<(f64, f64, f64)> = trace
+
+    /// Shades each span over `[y0, y1]` in its label's fill.
+    fn shade(
+        &self,
+        chart: &mut TimeChart<'_, BitMapBackend<'_>>,
+        [y0, y1]: [f64; 2],
+    ) -> Result<()> {
+        chart
+            .draw_series(self.spans.iter().map(|s| {
+                Rectangle::new(
+                    [(s.t[0], y0), (s.t[1].max(s.t[0]), y1)],
+                    fill(&s.label, &self.labels).filled(),
+                )
+            }))
+            .map_err(err)?;
+        Ok(())
+    }
+
+    /// The panel of parameter `k`, labelled `label`: its estimate with
+    /// the 2-std band over the shaded spans.
+    fn param(&self, area: &Area<'_>, k: usize, label: &str) -> Result<()> {
+        let pts: Vec<(f64, f64, f64)> = self
+            .trace
             .steps
             .iter()
             .map(|(t, o)| (*t, f64::from(o.params[k]), 2.0 * f64::from(o.param_std[k])))
             .collect();
-        // The axis follows the estimate once the verdict is given: the
-        // first steps' wide band would hide it.
+        let (y0, y1) = self.settled_bounds(&pts);
+        let frame = TimeFrame {
+            caption: None,
+            y_desc: label,
+            y_labels: 70,
+        };
+        let mut chart = time_chart(area, frame, self.t.clone(), y0..y1)?;
+        self.shade(&mut chart, [y0, y1])?;
+        band_and_estimate(&mut chart, &pts, [y0, y1])?;
+        crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)
+    }
+
+    /// The y axis of a parameter's panel, `(t, estimate, 2 std)` at each
+    /// step: it follows the estimate once the verdict is given (the first
+    /// steps' wide band would hide it).
+    fn settled_bounds(&self, pts: &[(f64, f64, f64)]) -> (f64, f64) {
         let settled: Vec<&(f64, f64, f64)> = pts
             .iter()
-            .zip(&trace.steps)
+            .zip(&self.trace.steps)
             .filter(|(_, s)| !matches!(s.1.trust, Trust::Pending))
             .map(|(p, _)| p)
             .collect();
@@ -174,96 +190,110 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
         } else {
             settled
         };
-        let (y0, y1) = bounds(shown.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]));
-        let mut chart = ChartBuilder::on(area)
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(70)
-            .build_cartesian_2d(xr.clone(), y0..y1)
-            .map_err(err)?;
-        chart
-            .configure_mesh()
-            .x_desc("t (s)")
-            .y_desc(label)
-            .draw()
-            .map_err(err)?;
-        shade(&mut chart, &spans, &labels, [y0, y1])?;
-        let clip = |v: f64| v.clamp(y0, y1);
-        let band: Vec<(f64, f64)> = pts
+        bounds(shown.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]))
+    }
+
+    /// The panel of the measured angle over the shaded spans.
+    fn theta(&self, area: &Area<'_>) -> Result<()> {
+        let theta: Vec<(f64, f64)> = self
+            .trace
+            .steps
             .iter()
-            .map(|p| (p.0, clip(p.1 + p.2)))
-            .chain(pts.iter().rev().map(|p| (p.0, clip(p.1 - p.2))))
+            .zip(&self.trace.theta)
+            .map(|((t, _), v)| (*t, *v))
             .collect();
+        let (y0, y1) = bounds(theta.iter().map(|p| p.1));
+        let mut chart = time_chart(area, TimeFrame::theta(None, 70), self.t.clone(), y0..y1)?;
+        self.shade(&mut chart, [y0, y1])?;
         chart
-            .draw_series(std::iter::once(Polygon::new(band, COLOURS[2].mix(0.25))))
-            .map_err(err)?
-            .label("2 std")
-            .legend(|(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 20, y + 5)], COLOURS[2].mix(0.25).filled())
-            });
-        chart
-            .draw_series(LineSeries::new(
-                pts.iter().map(|p| (p.0, clip(p.1))),
-                COLOURS[2].stroke_width(2),
-            ))
-            .map_err(err)?
-            .label("estimate")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], COLOURS[2].stroke_width(2))
-            });
-        crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)
-    };
-    param(&areas[0], 0, &trace.length_label)?;
-    if let Some((name, unit)) = trace.effect {
-        param(&areas[1], 1, &format!("{name} ({unit})"))?;
+            .draw_series(LineSeries::new(theta, BLACK.stroke_width(1)))
+            .map_err(err)?;
+        Ok(())
     }
-    // Panel: the measured angle.
-    let area = &areas[panels - 1];
-    let theta: Vec<(f64, f64)> = trace
-        .steps
+
+    /// The key to the shading below the panels: each verdict's colour and
+    /// words, at most [`KEY_LINES`] lines.
+    fn key(&self, foot: &Area<'_>) -> Result<()> {
+        let labels = &self.labels;
+        let mut key = vec![(
+            "pending: no verdict yet; unshaded: trusted".to_string(),
+            fill("pending", labels),
+        )];
+        key.extend(labels.iter().map(|l| (key_words(l), fill(l, labels))));
+        if key.len() > KEY_LINES {
+            let more = key.len() - (KEY_LINES - 1);
+            key.truncate(KEY_LINES - 1);
+            key.push((
+                format!("... and {more} more combinations of reasons"),
+                WHITE.mix(0.0),
+            ));
+        }
+        let mut y = 4;
+        for (text, colour) in key {
+            foot.draw(&Rectangle::new([(10, y), (40, y + 14)], colour.filled()))
+                .map_err(err)?;
+            foot.draw(&Text::new(text, (50, y), ("sans-serif", 15).into_font()))
+                .map_err(err)?;
+            y += 22;
+        }
+        Ok(())
+    }
+}
+
+/// Draws the estimate `pts`, `(t, estimate, 2 std)`, as a line in its
+/// band, both clipped to `[y0, y1]`.
+fn band_and_estimate(
+    chart: &mut TimeChart<'_, BitMapBackend<'_>>,
+    pts: &[(f64, f64, f64)],
+    [y0, y1]: [f64; 2],
+) -> Result<()> {
+    let clip = |v: f64| v.clamp(y0, y1);
+    let band: Vec<(f64, f64)> = pts
         .iter()
-        .zip(&trace.theta)
-        .map(|((t, _), v)| (*t, *v))
+        .map(|p| (p.0, clip(p.1 + p.2)))
+        .chain(pts.iter().rev().map(|p| (p.0, clip(p.1 - p.2))))
         .collect();
-    let (y0, y1) = bounds(theta.iter().map(|p| p.1));
-    let mut chart = ChartBuilder::on(area)
-        .margin(8)
-        .x_label_area_size(30)
-        .y_label_area_size(70)
-        .build_cartesian_2d(xr, y0..y1)
-        .map_err(err)?;
     chart
-        .configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("theta (rad)")
-        .draw()
-        .map_err(err)?;
-    shade(&mut chart, &spans, &labels, [y0, y1])?;
+        .draw_series(std::iter::once(Polygon::new(band, COLOURS[2].mix(0.25))))
+        .map_err(err)?
+        .label("2 std")
+        .legend(|(x, y)| {
+            Rectangle::new([(x, y - 5), (x + 20, y + 5)], COLOURS[2].mix(0.25).filled())
+        });
     chart
-        .draw_series(LineSeries::new(theta, BLACK.stroke_width(1)))
-        .map_err(err)?;
-    // The key to the shading: each verdict's colour and words.
-    let mut y = 4;
-    let mut key = vec![(
-        "pending: no verdict yet; unshaded: trusted".to_string(),
-        fill("pending", &labels),
-    )];
-    key.extend(labels.iter().map(|l| (key_words(l), fill(l, &labels))));
-    if key.len() > KEY_LINES {
-        let more = key.len() - (KEY_LINES - 1);
-        key.truncate(KEY_LINES - 1);
-        key.push((
-            format!("... and {more} more combinations of reasons"),
-            WHITE.mix(0.0),
-        ));
+        .draw_series(LineSeries::new(
+            pts.iter().map(|p| (p.0, clip(p.1))),
+            COLOURS[2].stroke_width(2),
+        ))
+        .map_err(err)?
+        .label("estimate")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], COLOURS[2].stroke_width(2)));
+    Ok(())
+}
+
+/// Draws the figure of `trace` into `path` (PNG): the title, a panel per
+/// parameter, the angle's panel and the key.
+pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
+    let panels = Panels::new(trace);
+    let rows = 2 + usize::from(trace.effect.is_some());
+    // The key: one line per verdict, below the panels.
+    let key_lines = (panels.labels.len() + 1).min(KEY_LINES);
+    let root = png(path, (1400, 260 * rows as u32 + 50 + 22 * key_lines as u32))?;
+    let (head, body) = root.split_vertically(40);
+    head.draw(&Text::new(
+        trace.title.clone(),
+        (10, 10),
+        ("sans-serif", 20).into_font(),
+    ))
+    .map_err(err)?;
+    let (body, foot) = body.split_vertically(260 * rows as u32);
+    let areas = body.split_evenly((rows, 1));
+    panels.param(&areas[0], 0, &trace.length_label)?;
+    if let Some((name, unit)) = trace.effect {
+        panels.param(&areas[1], 1, &format!("{name} ({unit})"))?;
     }
-    for (text, colour) in key {
-        foot.draw(&Rectangle::new([(10, y), (40, y + 14)], colour.filled()))
-            .map_err(err)?;
-        foot.draw(&Text::new(text, (50, y), ("sans-serif", 15).into_font()))
-            .map_err(err)?;
-        y += 22;
-    }
+    panels.theta(&areas[rows - 1])?;
+    panels.key(&foot)?;
     root.present().map_err(err)
 }
 

@@ -1,0 +1,204 @@
+//! What one step reports.
+
+use super::Estimator;
+use super::kernels::tail;
+use crate::blob::ParamSpec;
+use crate::trust::{self, Checks, Trust};
+use crate::PARAM_DIM;
+
+/// What one step reports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepOutput {
+    /// Index of the measurement just consumed (0 for the first).
+    pub t: u32,
+    /// Parameter estimates: the filter's coordinates read through each
+    /// parameter's [`Reading`](crate::blob::Reading) (a length scaled to
+    /// the declared gravity, [`Estimator::with_gravity`]).
+    pub params: [f32; PARAM_DIM],
+    /// Their standard deviations, to first order: `|dp/dq|` times the
+    /// coordinate's as calibrated at export, `sqrt((a s)^2 + b^2)` with `s`
+    /// = [`StepOutput::coordinate_std`] and `a`, `b` the blob's
+    /// [`TrustSpec`](crate::blob::TrustSpec) scale and floor (the filter's
+    /// own `P` leaves out the model's error).
+    pub param_std: [f32; PARAM_DIM],
+    /// The filter's coordinates `q` of the parameters (the `p` part of the
+    /// mean, or the held one: [`StepOutput::held`]; equal to `params` at
+    /// both ends of their training ranges).
+    pub coordinate: [f32; PARAM_DIM],
+    /// The filter's standard deviations of the coordinates, `sqrt(diag P)`
+    /// (or the held ones).
+    pub coordinate_std: [f32; PARAM_DIM],
+    /// The correction this step made to each coordinate.
+    pub correction: [f32; PARAM_DIM],
+    /// Population standard deviation of the corrections made at
+    /// `t >= burn_in` so far (0 before there are any), in the coordinates:
+    /// what the trust verdict is calibrated on.
+    pub sigma: [f32; PARAM_DIM],
+    /// The verdict, with its reasons ([`Reason`](crate::Reason)).
+    pub trust: Trust,
+    /// The most measurements off the training envelope among any
+    /// [`WINDOW`](crate::WINDOW) consecutive ones since the start (within
+    /// the first window, those off so far): what the envelope check
+    /// reads. The estimate holds what every measurement told it, so a
+    /// stretch off the envelope (a swing released wider than trained, a
+    /// knock) leaves it doubtful after the swing has returned.
+    pub off_envelope: u16,
+    /// The mean normalised innovation squared since the burn-in,
+    /// `nu^T S^-1 nu` with `nu = z - y'` the innovation and `S` its
+    /// covariance, over the updates whose recursion runs in full (every
+    /// update of the extended filter; the linear filter's only where it
+    /// runs without its gain schedule: a blob without one, or after a
+    /// gap): `None` before any. A model that fits the
+    /// measurements keeps it near what held-out rollouts give; noise
+    /// heavier than trained, friction or a torque the model lacks, or
+    /// measurements at another interval raise it.
+    pub nis: Option<f32>,
+    /// What the consistency check reads: [`StepOutput::nis`] scaled by
+    /// the blob's law for the length and the widest swing
+    /// (the mean itself for a
+    /// blob whose law is `[0, 0]`; `None` before any innovation, or where
+    /// the law reads a swing and only encoded measurements were given:
+    /// the check passes).
+    pub consistency: Option<f32>,
+    /// The change of the measured angle over the change the measured
+    /// rates predict, `dt` apart, least squares since the start
+    /// ([`Reason`](crate::Reason)): 1 for measurements at the blob's interval with
+    /// the rate in rad/s (`None` until the rate has moved, or when only
+    /// encoded measurements were given).
+    pub rate_ratio: Option<f32>,
+    /// The widest swing since the start: the largest half range of
+    /// `theta` over any [`WINDOW`](crate::WINDOW) to 2
+    /// [`WINDOW`](crate::WINDOW) measurements (NaN when only encoded
+    /// measurements were given); what the swing check reads.
+    pub swing: f32,
+    /// The swing's largest unevenness so far: how far the middle of the
+    /// range of `theta` over [`WINDOW`](crate::WINDOW) to 2
+    /// [`WINDOW`](crate::WINDOW) measurements lies from zero, as a share
+    /// of its half, the largest read while that swing was at least the
+    /// blob's smallest trusted (`None` before one is measured: see
+    /// [`Reason`](crate::Reason)).
+    pub unevenness: Option<f32>,
+    /// Whether the parameters, their standard deviations and the
+    /// coordinates are held: the recent swing is below the blob's smallest
+    /// trusted, and these are the filter's after the last measurement
+    /// whose swing was not. The filter runs on; a swing never that wide
+    /// is reported as it is (and flagged
+    /// [`Reason::SmallSwing`](crate::Reason::SmallSwing)).
+    pub held: bool,
+}
+
+/// One parameter as reported.
+#[derive(Debug, Clone, Copy)]
+struct ParamRead {
+    /// Its value at the blob's training gravity.
+    trained: f32,
+    /// Its value at the declared gravity.
+    value: f32,
+    /// Its calibrated standard deviation there.
+    std: f32,
+}
+
+impl ParamRead {
+    const NONE: ParamRead = ParamRead {
+        trained: f32::NAN,
+        value: f32::NAN,
+        std: f32::NAN,
+    };
+}
+
+impl Estimator<'_> {
+    /// The step's report: the estimate (or the held one), its calibrated
+    /// standard deviations and the verdict.
+    pub(super) fn output(&self, correction: [f32; PARAM_DIM]) -> StepOutput {
+        let blob = self.model.blob();
+        let calib = &blob.body.trust;
+        // While the recent swing is below the smallest trusted, the
+        // estimate of the last swing that was not: a swing that small
+        // moves the filter by the model's error and the noise, not by
+        // what the length is.
+        let small = self.swing.recent().is_some_and(|s| s < calib.min_swing);
+        let held = self.held.filter(|_| small);
+        let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.mean), self.param_std));
+        let specs = &blob.body.params;
+        let read: [ParamRead; PARAM_DIM] = core::array::from_fn(|k| {
+            let at = |a: &[f32; PARAM_DIM]| a.get(k).copied().unwrap_or(f32::NAN);
+            let std_calibration = [at(&calib.std_scale), at(&calib.std_floor)];
+            specs.get(k).map_or(ParamRead::NONE, |spec| {
+                self.read_param(spec, at(&coordinate), at(&coordinate_std), std_calibration)
+            })
+        });
+        let params = read.map(|r| r.value);
+        let param_std = read.map(|r| r.std);
+        let sigma = self.spread.sigma();
+        let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
+        let unevenness = self.swing.most_uneven();
+        let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
+        let swing = self.swing.widest();
+        // The length at the blob's gravity: what the model's own error
+        // follows (the consistency law's).
+        let length = read.first().map_or(f32::NAN, |r| r.trained);
+        let consistency = self
+            .consistency
+            .mean()
+            .and_then(|m| trust::consistency_statistic(m, length, swing, calib.nis_law));
+        let [lo, hi] = calib.range;
+        let checks = Checks {
+            corrections: self.spread.n,
+            settled: sigma.first().copied().unwrap_or(f32::INFINITY)
+                <= blob.body.filter.sigma_threshold,
+            physical: specs
+                .iter()
+                .zip(&params)
+                .all(|(spec, p)| !spec.declared || spec.physical(*p)),
+            in_range: q0 >= lo && q0 <= hi,
+            in_envelope: self.worst_off <= calib.envelope_max_off,
+            // These two move both ways and are calibrated from the
+            // WINDOW-th update on: before it they pass.
+            consistent: !full_window || consistency.is_none_or(|c| c <= calib.max_nis),
+            rate_ok: !full_window
+                || self
+                    .kinematics
+                    .ratio()
+                    .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
+            swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
+            even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
+            gravity_known: self.g_known,
+        };
+        StepOutput {
+            t: self.t,
+            params,
+            param_std,
+            coordinate,
+            coordinate_std,
+            correction,
+            sigma,
+            trust: checks.verdict(),
+            off_envelope: self.worst_off,
+            nis: self.consistency.mean(),
+            consistency,
+            rate_ratio: self.kinematics.ratio(),
+            swing: swing.unwrap_or(f32::NAN),
+            unevenness,
+            held: held.is_some(),
+        }
+    }
+
+    /// The parameter `spec` at the coordinate `q` with the filter's
+    /// standard deviation `q_std`, reported with the blob's calibration
+    /// `[scale, floor]`: `sqrt((scale q_std)^2 + floor^2)`, through the
+    /// reading's slope.
+    fn read_param(&self, spec: &ParamSpec, q: f32, q_std: f32, [a, b]: [f32; 2]) -> ParamRead {
+        let scale = if spec.scales_with_g {
+            self.g_ratio
+        } else {
+            1.0
+        };
+        let trained = spec.read(q);
+        let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
+        ParamRead {
+            trained,
+            value: scale * trained,
+            std: scale * libm::fabsf(spec.slope(q)) * calibrated,
+        }
+    }
+}

@@ -1,0 +1,306 @@
+//! The trust verdict: whether an estimate may be believed, and if not,
+//! why.
+//!
+//! After each step the estimator runs the checks [`Reason`] lists, each
+//! calibrated at export on held-out rollouts (`koopman calibrate`).
+//!
+//! The swings (latest, closed, recent, widest) are defined once, in the
+//! `swing` room. While the recent swing is below the smallest trusted,
+//! the estimate reported is held from the last measurement whose latest
+//! swing was not (`StepOutput::held`): the checks that read the estimate
+//! read the held one; sigma, the envelope and the innovations follow the
+//! running filter, as they did when the thresholds were calibrated.
+//!
+//! The verdict is [`Trust::Trusted`] when no check fails and
+//! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
+//! Everything is fixed-size: the reasons are a [`heapless::Vec`], the
+//! window one `u64` of flags.
+
+mod running;
+mod swing;
+
+use heapless::Vec;
+
+
+internal! {
+    pub use running::consistency_statistic;
+}
+pub(crate) use running::{Consistency, EnvelopeWindow, Kinematics, Spread};
+pub(crate) use swing::SwingWindow;
+
+/// Why an estimate is not trusted: one check of the verdict each.
+///
+/// After each step the estimator runs these checks, each calibrated at
+/// export on held-out rollouts from the blob's declared operating range
+/// (`koopman calibrate`; figures in the blob's JSON):
+///
+/// | reason | fails when | catches |
+/// | --- | --- | --- |
+/// | [`Reason::Unsettled`] | the spread (sigma) of the first parameter's corrections since the burn-in is above the blob's threshold | the paper's check: a length outside the trained range, heavy noise |
+/// | [`Reason::NonPhysical`] | a declared parameter is not finite, or not positive where it was trained on positive values only | a length below zero |
+/// | [`Reason::OutsideRange`] | the first parameter's coordinate lies outside the range held-out rollouts reach | |
+/// | [`Reason::OutsideEnvelope`] | more of some [`WINDOW`](crate::WINDOW) consecutive states since the start than calibrated lie off the training envelope ([`crate::blob::Envelope`]; at the estimated parameter once past the burn-in) | a swing wider or smaller than trained, damping, a torque |
+/// | [`Reason::SmallSwing`] | the widest swing since the start is below the blob's smallest trusted | a model least accurate at the edge of its training |
+/// | [`Reason::UnevenSwing`] | the largest unevenness remembered of a swing at least the smallest trusted is above the blob's largest | friction, a torque or a sensor offset the envelope does not see |
+/// | [`Reason::Inconsistent`] | the mean normalised innovation squared since the burn-in, scaled by the blob's law (the consistency law), is above the blob's largest, from the [`WINDOW`](crate::WINDOW)-th update on | noise heavier than trained, an effect the model lacks |
+/// | [`Reason::RateMismatch`] | the measured rate departs from the angle's change over the blob's interval by more than the blob allows, from the [`WINDOW`](crate::WINDOW)-th update on | another interval, a rate in other units |
+/// | [`Reason::GravityUndeclared`] | a parameter the dynamics see only through `g / p` is reported and no gravity was declared | a length read at the blob's g, which no measurement can confirm |
+///
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Reason {
+    /// Sigma above the calibrated threshold: the corrections have not
+    /// settled.
+    Unsettled,
+    /// A parameter reads as a value no physical system has.
+    NonPhysical,
+    /// The parameter lies outside the calibrated range.
+    OutsideRange,
+    /// The measured states lie outside the training envelope.
+    OutsideEnvelope,
+    /// The swing is smaller than the model estimates accurately.
+    SmallSwing,
+    /// The swing does not reach the same angle on both sides: friction, a
+    /// torque or a sensor offset, none of which the model knows.
+    UnevenSwing,
+    /// The measurements disagree with the model's predictions more than
+    /// in held-out rollouts.
+    Inconsistent,
+    /// The measured rate does not match the angle's change over the
+    /// blob's interval: another interval, or a rate in other units.
+    RateMismatch,
+    /// The system's gravity was never declared: a length is read at the
+    /// blob's training gravity, which the motion cannot confirm.
+    GravityUndeclared,
+}
+
+impl Reason {
+    /// Every reason, in the order the verdict lists them.
+    pub const ALL: [Reason; REASONS] = [
+        Reason::Unsettled,
+        Reason::NonPhysical,
+        Reason::OutsideRange,
+        Reason::OutsideEnvelope,
+        Reason::SmallSwing,
+        Reason::UnevenSwing,
+        Reason::Inconsistent,
+        Reason::RateMismatch,
+        Reason::GravityUndeclared,
+    ];
+
+    /// The reason in words (what `koopman estimate --json` writes as
+    /// `trust_reasons`, and the firmware prints).
+    pub const fn as_str(&self) -> &'static str {
+        match self {
+            Reason::Unsettled => "corrections not settled",
+            Reason::NonPhysical => "parameter not physical",
+            Reason::OutsideRange => "parameter outside calibrated range",
+            Reason::OutsideEnvelope => "state outside training envelope",
+            Reason::SmallSwing => "swing below the accurate range",
+            Reason::UnevenSwing => "swing uneven: friction, torque or offset",
+            Reason::Inconsistent => "measurements inconsistent with the model",
+            Reason::RateMismatch => "rate does not match the angle: another interval or unit",
+            Reason::GravityUndeclared => "g not declared: length read at the blob's g",
+        }
+    }
+}
+
+impl Reason {
+    /// The reason as one word, for logs that split on spaces (the
+    /// firmware's).
+    pub const fn code(&self) -> &'static str {
+        match self {
+            Reason::Unsettled => "unsettled",
+            Reason::NonPhysical => "non_physical",
+            Reason::OutsideRange => "outside_range",
+            Reason::OutsideEnvelope => "outside_envelope",
+            Reason::SmallSwing => "small_swing",
+            Reason::UnevenSwing => "uneven_swing",
+            Reason::Inconsistent => "inconsistent",
+            Reason::RateMismatch => "rate_mismatch",
+            Reason::GravityUndeclared => "g_undeclared",
+        }
+    }
+}
+
+impl core::fmt::Display for Reason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How many reasons there are.
+pub const REASONS: usize = 9;
+
+/// The failed checks, in the order of [`Reason::ALL`].
+pub type Reasons = Vec<Reason, REASONS>;
+
+/// Whether the estimate can be trusted.
+///
+/// # Examples
+///
+/// ```
+/// use estimator::{Reason, Reasons, Trust};
+///
+/// let mut reasons = Reasons::new();
+/// reasons.push(Reason::SmallSwing).unwrap();
+/// let verdict = Trust::Untrusted(reasons);
+/// assert!(verdict.is_untrusted());
+/// assert_eq!(verdict.as_str(), "untrusted");
+/// assert_eq!(verdict.reasons()[0].to_string(), "swing below the accurate range");
+/// assert_eq!(verdict.reasons()[0].code(), "small_swing");
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Trust {
+    /// Fewer than two corrections after the burn-in: no verdict yet.
+    Pending,
+    /// Every check passed.
+    Trusted,
+    /// At least one check failed; the reasons say which.
+    Untrusted(Reasons),
+}
+
+impl Trust {
+    /// True for [`Trust::Trusted`] only.
+    pub fn is_trusted(&self) -> bool {
+        matches!(self, Trust::Trusted)
+    }
+
+    /// True for [`Trust::Untrusted`].
+    pub fn is_untrusted(&self) -> bool {
+        matches!(self, Trust::Untrusted(_))
+    }
+
+    /// `"pending"`, `"trusted"` or `"untrusted"`.
+    pub const fn as_str(&self) -> &'static str {
+        match self {
+            Trust::Pending => "pending",
+            Trust::Trusted => "trusted",
+            Trust::Untrusted(_) => "untrusted",
+        }
+    }
+
+    /// The reasons (empty unless untrusted).
+    pub fn reasons(&self) -> &[Reason] {
+        match self {
+            Trust::Untrusted(r) => r,
+            _ => &[],
+        }
+    }
+}
+
+/// What the verdict is made of, one step's worth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Checks {
+    /// Corrections after the burn-in so far.
+    pub corrections: u32,
+    /// Sigma at or below the threshold.
+    pub settled: bool,
+    /// Every declared parameter physical.
+    pub physical: bool,
+    /// The first parameter's coordinate inside the calibrated range.
+    pub in_range: bool,
+    /// Measurements off the envelope in the worst window so far, at most
+    /// the calibrated number.
+    pub in_envelope: bool,
+    /// The swing at least the calibrated smallest.
+    pub swing_ok: bool,
+    /// The largest unevenness remembered of a swing at least the
+    /// smallest trusted ([`SwingWindow::most_uneven`]) at most the
+    /// calibrated largest.
+    pub even: bool,
+    /// The consistency statistic ([`consistency_statistic`]: the mean
+    /// normalised innovation scaled by the blob's law) at most the
+    /// calibrated largest.
+    pub consistent: bool,
+    /// The rate's ratio to the angle's change within the calibrated band.
+    pub rate_ok: bool,
+    /// Gravity declared, or no parameter read through it.
+    pub gravity_known: bool,
+}
+
+impl Checks {
+    /// The verdict.
+    pub fn verdict(&self) -> Trust {
+        if self.corrections < 2 {
+            return Trust::Pending;
+        }
+        let passed = [
+            self.settled,
+            self.physical,
+            self.in_range,
+            self.in_envelope,
+            self.swing_ok,
+            self.even,
+            self.consistent,
+            self.rate_ok,
+            self.gravity_known,
+        ];
+        let mut reasons = Reasons::new();
+        for (reason, ok) in Reason::ALL.iter().zip(passed) {
+            if !ok {
+                // Capacity is the number of reasons: never full.
+                let _ = reasons.push(*reason);
+            }
+        }
+        if reasons.is_empty() {
+            Trust::Trusted
+        } else {
+            Trust::Untrusted(reasons)
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// Every failed check is named, in order; none failed is trusted.
+    #[test]
+    fn verdict_lists_every_failed_check() {
+        let all_ok = Checks {
+            corrections: 2,
+            settled: true,
+            physical: true,
+            in_range: true,
+            in_envelope: true,
+            swing_ok: true,
+            even: true,
+            consistent: true,
+            rate_ok: true,
+            gravity_known: true,
+        };
+        assert_eq!(all_ok.verdict(), Trust::Trusted);
+        assert_eq!(
+            Checks {
+                corrections: 1,
+                ..all_ok
+            }
+            .verdict(),
+            Trust::Pending
+        );
+        let bad = Checks {
+            settled: false,
+            in_envelope: false,
+            ..all_ok
+        };
+        assert_eq!(
+            bad.verdict().reasons(),
+            &[Reason::Unsettled, Reason::OutsideEnvelope]
+        );
+        let none = Checks {
+            corrections: 9,
+            settled: false,
+            physical: false,
+            in_range: false,
+            in_envelope: false,
+            swing_ok: false,
+            even: false,
+            consistent: false,
+            rate_ok: false,
+            gravity_known: false,
+        };
+        assert_eq!(none.verdict().reasons(), &Reason::ALL);
+    }
+}
