@@ -53,6 +53,9 @@ pub enum Error {
     FilterNotStarted,
     /// The gravity declared to the estimator is not finite and positive.
     InputBadGravity,
+    /// A source interval that is not finite and positive
+    /// ([`Estimator::with_source_interval`](crate::Estimator::with_source_interval)).
+    InputBadInterval,
 }
 
 impl Error {
@@ -81,6 +84,7 @@ impl Error {
             Error::FilterNonFinite => "filter: update produced a non-finite state",
             Error::FilterNotStarted => "filter: no first measurement to predict from",
             Error::InputBadGravity => "input: gravity must be finite and positive",
+            Error::InputBadInterval => "input: the source interval must be finite and positive",
         }
     }
 }

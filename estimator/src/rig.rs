@@ -48,6 +48,15 @@ impl Rig {
     /// Every rig, in the order the command line lists them.
     pub const ALL: [Rig; 2] = [Rig::Simple, Rig::Rod];
 
+    /// `l_eq / L`: the equivalent simple length per unit of the rig's
+    /// length (1 for a string, 2/3 for a rod).
+    pub const fn equivalent_fraction(self) -> f32 {
+        match self {
+            Rig::Simple => 1.0,
+            Rig::Rod => 2.0 / 3.0,
+        }
+    }
+
     /// Its name, as the command line and the files spell it.
     pub const fn name(self) -> &'static str {
         match self {

@@ -73,6 +73,8 @@ fn small_blob_bytes() -> Vec<u8> {
                 max_nis: 100.0,
                 nis_law: [0.0, 0.0],
                 max_rate_mismatch: 0.5,
+                max_step_nis: 0.0,
+                min_samples_per_period: 0.0,
             },
             pad: &[],
             weights: F32s(&weights),
@@ -91,9 +93,9 @@ fn hex(bytes: &[u8]) -> String {
 #[test]
 fn a_small_blob_is_written_as_the_spec_says() {
     let bytes = small_blob_bytes();
-    // Header: "KKF1", version 10, state 2, latent 16, params 2, hidden 64,
+    // Header: "KKF1", version 11, state 2, latent 16, params 2, hidden 64,
     // inputs 1 (each u16 one varint byte).
-    assert_eq!(hex(&bytes[..10]), "4b4b46310a0210024001");
+    assert_eq!(hex(&bytes[..10]), "4b4b46310b0210024001");
     // Body: dt 0.04 (0x3d23d70a), g 9.81 (0x411cf5c3), rig Simple (0),
     // family Bilinear (1), activation Tanh (1), norm_mu [0, -0.5],
     // norm_s [1, 2], then the first parameter: name "length" (6 bytes),
@@ -126,9 +128,9 @@ fn a_small_blob_is_written_as_the_spec_says() {
     let arena_at = bytes.len() - 4 - arena_len;
     assert_eq!(arena_at % 4, 0);
     assert_eq!(&bytes[arena_at..bytes.len() - 4], arena(11_794).as_slice());
-    assert_eq!(bytes.len(), 47_548);
+    assert_eq!(bytes.len(), 47_556);
     // The CRC-32/ISCSI of everything before it, little-endian.
-    assert_eq!(hex(&bytes[bytes.len() - 4..]), "3abb8a0e");
+    assert_eq!(hex(&bytes[bytes.len() - 4..]), "de9d5369");
     // And it reads back as what was written.
     let back = Blob::from_bytes(&bytes).unwrap();
     assert_eq!(back.body.params[1].name, "damping");

@@ -8,7 +8,7 @@ use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, Rig, S
 /// First four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 10;
+pub const FORMAT_VERSION: u16 = 11;
 
 /// The fixed-size header, read before anything else.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
@@ -167,6 +167,15 @@ pub struct TrustSpec<'a> {
     /// the measured rates predict that passes
     /// ([`Reason::RateMismatch`](crate::Reason::RateMismatch)).
     pub max_rate_mismatch: f32,
+    /// The largest ratio of one measurement's normalised innovation
+    /// squared to the mean of those before it that the filter takes:
+    /// above it the measurement is refused as an outlier
+    /// ([`StepOutput::outlier`](crate::StepOutput::outlier); 0: none is).
+    pub max_step_nis: f32,
+    /// The fewest samples a period of the source the calibration covers
+    /// (0: any source passes;
+    /// [`Reason::CoarseSource`](crate::Reason::CoarseSource)).
+    pub min_samples_per_period: f32,
 }
 
 impl TrustSpec<'_> {
@@ -182,7 +191,9 @@ impl TrustSpec<'_> {
             && self.max_unevenness >= 0.0
             && self.max_nis >= 0.0
             && self.nis_law.iter().all(|v| v.is_finite())
-            && self.max_rate_mismatch >= 0.0;
+            && self.max_rate_mismatch >= 0.0
+            && self.max_step_nis >= 0.0
+            && self.min_samples_per_period >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
         if finite && stds {

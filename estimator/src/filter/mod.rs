@@ -64,6 +64,7 @@
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
+mod centre;
 mod full;
 mod kernels;
 mod output;
@@ -72,6 +73,7 @@ mod two_stage;
 
 pub use output::StepOutput;
 
+use centre::Centre;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
@@ -136,7 +138,31 @@ pub struct Estimator<'m> {
     /// parameter is read through it). Otherwise the verdict is
     /// [`Reason::GravityUndeclared`](crate::Reason::GravityUndeclared).
     g_known: bool,
+    /// The angle's zero ([`StepOutput::offset`]).
+    centre: Centre,
+    /// Measurements refused as outliers so far, in a row now, and whether
+    /// the last one was.
+    outliers: u32,
+    outlier_run: u8,
+    outlier: bool,
+    /// The last update's normalised innovation squared, where formed.
+    innovation: Option<f32>,
+    /// The source's own sampling interval, s (0: not declared).
+    source_dt: f32,
+    /// Updates before which the corrections and innovations do not count
+    /// (a burn-in again after the parameters were reopened).
+    burn_until: u32,
 }
+
+/// How many times the parameters' variances widen when an offset is
+/// first subtracted: the estimate may move by four of its standard
+/// deviations (wider, and a bilinear model's `F(q)` can be driven off its
+/// trained square before the swings pull it back).
+const REOPEN: f32 = 16.0;
+
+/// Measurements in a row refused as outliers at most: the next is taken
+/// (a knock, not a tracker's glitch, moves every measurement after it).
+const MAX_OUTLIER_RUN: u8 = 3;
 
 impl<'m> Estimator<'m> {
     /// A filter that has seen nothing yet; it uses the blob's gain schedule
@@ -161,6 +187,13 @@ impl<'m> Estimator<'m> {
             swing: SwingWindow::default(),
             held: None,
             g_ratio: 1.0,
+            centre: Centre::default(),
+            outliers: 0,
+            outlier_run: 0,
+            outlier: false,
+            innovation: None,
+            source_dt: 0.0,
+            burn_until: 0,
             g_known: !model
                 .blob()
                 .body
@@ -197,13 +230,32 @@ impl<'m> Estimator<'m> {
     /// [`Estimator::with_gravity`] with that `g` (which the blob's
     /// validation keeps finite and positive). Until a gravity is declared,
     /// the verdict on a length is
-    /// [`Reason::GravityUndeclared`](crate::trust::Reason::GravityUndeclared).
+    /// [`Reason::GravityUndeclared`](crate::Reason::GravityUndeclared).
     pub fn at_trained_gravity(self) -> Self {
         Estimator {
             g_ratio: 1.0,
             g_known: true,
             ..self
         }
+    }
+
+    /// The same filter told the source's own sampling interval `dt` (s),
+    /// before any resampling to the blob's: where the source gives fewer
+    /// samples a period, at the length read, than the blob's calibration
+    /// covers, the verdict is
+    /// [`Reason::CoarseSource`](crate::Reason::CoarseSource).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InputBadInterval`] unless `dt` is finite and positive.
+    pub fn with_source_interval(self, dt: f32) -> Result<Self, Error> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::InputBadInterval);
+        }
+        Ok(Estimator {
+            source_dt: dt,
+            ..self
+        })
     }
 
     /// A filter that ignores the blob's gain schedule and runs the
@@ -223,6 +275,7 @@ impl<'m> Estimator<'m> {
             scheduled: self.scheduled,
             g_ratio: self.g_ratio,
             g_known: self.g_known,
+            source_dt: self.source_dt,
             ..Estimator::new(self.model)
         };
     }
@@ -357,9 +410,24 @@ impl<'m> Estimator<'m> {
         {
             return Err(Error::NonFiniteInput);
         }
-        let x_n = self.model.normalise(raw);
+        let [theta, rate] = *raw;
+        let centred = self.centre.centred(theta, rate);
+        let x_n = self.model.normalise(&centred);
         let z = self.model.encode(&x_n);
-        self.update(&z, Some((raw, &x_n)))
+        let out = self.update(&z, Some((&centred, &x_n)))?;
+        // A refused measurement leaves no turning point behind (and breaks
+        // their chain); a taken one may give the offset, subtracted from
+        // the next measurement on.
+        if out.outlier {
+            self.centre.gap();
+        } else {
+            let was = self.centre.subtracting();
+            self.centre.push(theta, rate);
+            if !was && self.centre.subtracting() {
+                self.reopen_params();
+            }
+        }
+        Ok(out)
     }
 
     /// Advances the filter one model step without a measurement (a sample
@@ -402,6 +470,15 @@ impl<'m> Estimator<'m> {
         if !self.started {
             return Err(Error::FilterNotStarted);
         }
+        self.advance_unobserved()?;
+        self.outlier = false;
+        self.innovation = None;
+        Ok(self.output([0.0; PARAM_DIM]))
+    }
+
+    /// One model step without a measurement: the state of
+    /// [`Estimator::predict`], before its report.
+    fn advance_unobserved(&mut self) -> Result<(), Error> {
         let p = self.current_covariance()?;
         let (m, p) = self.predict_only(&p)?;
         self.mean = m;
@@ -409,7 +486,78 @@ impl<'m> Estimator<'m> {
         self.param_std = sqrt_diag(&p, LATENT_DIM);
         self.bridged = true;
         self.kinematics.gap();
+        self.centre.gap();
         self.t = self.t.saturating_add(1);
+        Ok(())
+    }
+
+    /// The parameters' variances widened [`REOPEN`] times (at most to the
+    /// prior) and uncorrelated with the latent: what the filter learned of them from measurements an
+    /// offset had moved is forgotten once the offset is subtracted (the
+    /// whole recursion runs from then on); the verdict's corrections and
+    /// innovations count again after a new burn-in, and the swings, the
+    /// envelope and the held estimate are read afresh.
+    #[cold]
+    #[inline(never)]
+    fn reopen_params(&mut self) {
+        // Only the schedule's replay can fail: then the parameters stay.
+        let Ok(mut p) = self.current_covariance() else {
+            return;
+        };
+        let prior = &self.model.blob().body.filter.prior_var;
+        for (i, row) in p.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                if i >= LATENT_DIM || j >= LATENT_DIM {
+                    *v = if i == j {
+                        let widened = REOPEN * *v;
+                        prior.get(i).map_or(widened, |p| widened.min(*p))
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        }
+        self.p = p;
+        self.bridged = true;
+        // The verdict starts again: a burn-in, then the corrections.
+        let burn_in = u32::from(self.model.blob().body.filter.burn_in);
+        self.burn_until = self.t.saturating_add(burn_in);
+        self.spread = Spread::default();
+        self.consistency = Consistency::default();
+        // What the states and the swings showed the forgotten estimate,
+        // and the estimate held from them.
+        self.window = EnvelopeWindow::default();
+        self.worst_off = 0;
+        self.swing = SwingWindow::default();
+        self.held = None;
+        self.kinematics.gap();
+    }
+
+    /// Whether a measurement whose normalised innovation squared is `nis`
+    /// is refused: more than the blob's bound times the mean of those
+    /// before it (a glitch stands out from its neighbours; a model that
+    /// fits every measurement badly is the consistency check's to flag),
+    /// and not the [`MAX_OUTLIER_RUN`]-th in a row.
+    fn is_outlier(&self, nis: f32) -> bool {
+        let bound = self.model.blob().body.trust.max_step_nis;
+        bound > 0.0
+            && self.outlier_run < MAX_OUTLIER_RUN
+            && self
+                .consistency
+                .mean()
+                .is_some_and(|mean| mean > 0.0 && nis > bound * mean)
+    }
+
+    /// Refuses this measurement as an outlier: the filter predicts across
+    /// it as across a lost sample, and counts it.
+    #[cold]
+    #[inline(never)]
+    fn refuse(&mut self, nis: f32) -> Result<StepOutput, Error> {
+        self.advance_unobserved()?;
+        self.outliers = self.outliers.saturating_add(1);
+        self.outlier_run = self.outlier_run.saturating_add(1);
+        self.outlier = true;
+        self.innovation = Some(nis);
         Ok(self.output([0.0; PARAM_DIM]))
     }
 
@@ -481,6 +629,8 @@ impl<'m> Estimator<'m> {
             self.kinematics = Kinematics::default();
             self.swing = SwingWindow::default();
             self.held = None;
+            self.outlier = false;
+            self.innovation = None;
             self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
         }
@@ -515,6 +665,9 @@ impl<'m> Estimator<'m> {
                 (m, std)
             }
         };
+        if let Some(n) = nis.filter(|n| self.is_outlier(*n)) {
+            return self.refuse(n);
+        }
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction.iter_mut().zip(
             m.iter()
@@ -531,12 +684,15 @@ impl<'m> Estimator<'m> {
         self.pb = pb;
         self.param_std = param_std;
         self.t = t;
-        if t >= u32::from(spec.burn_in) {
+        if t >= self.burn_until.max(u32::from(spec.burn_in)) {
             self.spread.push(&correction);
             if let Some(n) = nis {
                 self.consistency.push(n);
             }
         }
+        self.outlier = false;
+        self.outlier_run = 0;
+        self.innovation = nis;
         self.observe(x);
         Ok(self.output(correction))
     }
@@ -554,8 +710,11 @@ impl<'m> Estimator<'m> {
         let min_swing = self.model.blob().body.trust.min_swing;
         // The snapshot from the latest swing, the decision to report it
         // from the recent one (which lags): nothing the small swing told
-        // the filter gets into the snapshot.
-        if self.swing.push(theta, rate, min_swing) >= min_swing {
+        // the filter gets into the snapshot; nor does an estimate still
+        // settling a window after its parameters were reopened.
+        let settled_again = self.burn_until == 0
+            || self.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
+        if self.swing.push(theta, rate, min_swing) >= min_swing && settled_again {
             self.held = Some((*tail(&self.mean), self.param_std));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);

@@ -85,6 +85,21 @@ pub struct StepOutput {
     /// is reported as it is (and flagged
     /// [`Reason::SmallSwing`](crate::Reason::SmallSwing)).
     pub held: bool,
+    /// The angle's zero found from the turning points, rad: subtracted
+    /// from `theta` before the encoder (`None` until three turning
+    /// points).
+    pub offset: Option<f32>,
+    /// Its standard deviation, rad (`None` until two estimates).
+    pub offset_std: Option<f32>,
+    /// This step's normalised innovation squared, `nu^T S^-1 nu` (`None`
+    /// where the filter does not form it: the gain schedule).
+    pub innovation: Option<f32>,
+    /// This measurement was refused as an outlier (its innovation above
+    /// the blob's [`max_step_nis`](crate::blob::TrustSpec::max_step_nis)):
+    /// the filter predicted across it instead.
+    pub outlier: bool,
+    /// Measurements refused as outliers so far.
+    pub outliers: u32,
 }
 
 /// One parameter as reported.
@@ -129,6 +144,7 @@ impl Estimator<'_> {
         });
         let params = read.map(|r| r.value);
         let param_std = read.map(|r| r.std);
+        let (offset, offset_std) = self.centre.offset();
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
         let unevenness = self.swing.most_uneven();
@@ -163,6 +179,7 @@ impl Estimator<'_> {
             swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
+            source_ok: self.source_ok(length, calib.min_samples_per_period),
         };
         StepOutput {
             t: self.t,
@@ -180,7 +197,26 @@ impl Estimator<'_> {
             swing: swing.unwrap_or(f32::NAN),
             unevenness,
             held: held.is_some(),
+            offset,
+            offset_std,
+            innovation: self.innovation,
+            outlier: self.outlier,
+            outliers: self.outliers,
         }
+    }
+
+    /// Whether the declared source gives at least `min_samples` samples a
+    /// period at the length `length` (read at the blob's gravity): the
+    /// period is `2 pi sqrt(l_eq / g)`. Passes where nothing is declared,
+    /// or the length is not one.
+    fn source_ok(&self, length: f32, min_samples: f32) -> bool {
+        let body = &self.model.blob().body;
+        if self.source_dt <= 0.0 || !(length.is_finite() && length > 0.0) {
+            return true;
+        }
+        let l_eq = length * body.rig.equivalent_fraction();
+        let period = core::f32::consts::TAU * libm::sqrtf(l_eq / body.g);
+        period / self.source_dt >= min_samples
     }
 
     /// The parameter `spec` at the coordinate `q` with the filter's

@@ -45,6 +45,7 @@ pub(crate) use swing::SwingWindow;
 /// | [`Reason::Inconsistent`] | the mean normalised innovation squared since the burn-in, scaled by the blob's law (the consistency law), is above the blob's largest, from the [`WINDOW`](crate::WINDOW)-th update on | noise heavier than trained, an effect the model lacks |
 /// | [`Reason::RateMismatch`] | the measured rate departs from the angle's change over the blob's interval by more than the blob allows, from the [`WINDOW`](crate::WINDOW)-th update on | another interval, a rate in other units |
 /// | [`Reason::GravityUndeclared`] | a parameter the dynamics see only through `g / p` is reported and no gravity was declared | a length read at the blob's g, which no measurement can confirm |
+/// | [`Reason::CoarseSource`] | the source was sampled fewer times a period, at the length read, than the blob's calibration covers (declared with [`Estimator::with_source_interval`](crate::Estimator::with_source_interval)) | a slow camera upsampled by the import |
 ///
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
@@ -72,6 +73,9 @@ pub enum Reason {
     /// The system's gravity was never declared: a length is read at the
     /// blob's training gravity, which the motion cannot confirm.
     GravityUndeclared,
+    /// The source was sampled more coarsely than the blob's calibration
+    /// covers.
+    CoarseSource,
 }
 
 impl Reason {
@@ -86,6 +90,7 @@ impl Reason {
         Reason::Inconsistent,
         Reason::RateMismatch,
         Reason::GravityUndeclared,
+        Reason::CoarseSource,
     ];
 
     /// The reason in words (what `koopman estimate --json` writes as
@@ -101,6 +106,7 @@ impl Reason {
             Reason::Inconsistent => "measurements inconsistent with the model",
             Reason::RateMismatch => "rate does not match the angle: another interval or unit",
             Reason::GravityUndeclared => "g not declared: length read at the blob's g",
+            Reason::CoarseSource => "source coarser than the blob's calibration",
         }
     }
 }
@@ -119,6 +125,7 @@ impl Reason {
             Reason::Inconsistent => "inconsistent",
             Reason::RateMismatch => "rate_mismatch",
             Reason::GravityUndeclared => "g_undeclared",
+            Reason::CoarseSource => "coarse_source",
         }
     }
 }
@@ -130,7 +137,7 @@ impl core::fmt::Display for Reason {
 }
 
 /// How many reasons there are.
-pub const REASONS: usize = 9;
+pub const REASONS: usize = 10;
 
 /// The failed checks, in the order of [`Reason::ALL`].
 pub type Reasons = Vec<Reason, REASONS>;
@@ -217,6 +224,9 @@ pub(crate) struct Checks {
     pub rate_ok: bool,
     /// Gravity declared, or no parameter read through it.
     pub gravity_known: bool,
+    /// The source's samples a period at least the calibration's fewest
+    /// (or not declared).
+    pub source_ok: bool,
 }
 
 impl Checks {
@@ -235,6 +245,7 @@ impl Checks {
             self.consistent,
             self.rate_ok,
             self.gravity_known,
+            self.source_ok,
         ];
         let mut reasons = Reasons::new();
         for (reason, ok) in Reason::ALL.iter().zip(passed) {
@@ -270,6 +281,7 @@ mod tests {
             consistent: true,
             rate_ok: true,
             gravity_known: true,
+            source_ok: true,
         };
         assert_eq!(all_ok.verdict(), Trust::Trusted);
         assert_eq!(
@@ -300,6 +312,7 @@ mod tests {
             consistent: false,
             rate_ok: false,
             gravity_known: false,
+            source_ok: false,
         };
         assert_eq!(none.verdict().reasons(), &Reason::ALL);
     }

@@ -11,10 +11,15 @@
 //! 0.1 1/rad, Coulomb 0.02 to 0.2 rad/s^2, in turn), filmed at 12 to 100
 //! Hz (evenly or with a logger's jitter, at least 12 samples a period),
 //! tracking noise 0.002 to 0.01 rad and 0.1-degree steps, for
-//! [`LabCheckConfig::seconds`].
+//! [`LabCheckConfig::seconds`]. Optionally a sensor offset
+//! ([`LabCheckConfig::offsets`]), video rates of the user's choosing
+//! ([`LabCheckConfig::rates`]) and a mixed dissipation
+//! ([`LabCheckConfig::mixed`]).
 //!
 //! The figures ([`Figures`]): the length after the first [`WINDOW`]
-//! measurements and at the end of the recording, against the truth.
+//! measurements and at the end of the recording, against the truth, the
+//! blob's beside the physics peer's ([`crate::peer`], on the same imported
+//! recording), per effect, offset, source rate and swing.
 
 use anyhow::{Context, Result};
 use estimator::{Estimator, Model, StepOutput, Trust};
@@ -22,9 +27,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::data::Rollout;
 use crate::data::drawn::log_uniform;
 use crate::data::import::{self, ImportOptions};
 use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
+use crate::peer::{self, Peer, PeerConfig, Reading};
 use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 use crate::protocol::WINDOW;
 use crate::track::track_each;
@@ -44,6 +51,18 @@ pub struct LabCheckConfig {
     pub seconds: [f64; 2],
     /// Tracking noise, rad (standard deviation), uniform.
     pub noise: [f64; 2],
+    /// Sensor offset, rad, uniform (`[0, 0]`: none).
+    #[serde(default)]
+    pub offsets: [f64; 2],
+    /// Source rates, Hz: the [`VIDEO_RATES`] within, any samples a
+    /// period (`None`: the lab's [`RATES`] with at least 12 samples a
+    /// period).
+    #[serde(default)]
+    pub rates: Option<[f64; 2]>,
+    /// A fourth dissipation in turn: viscous damping, drag and Coulomb
+    /// friction together at the sizes of real rigs ([`MIXED`]).
+    #[serde(default)]
+    pub mixed: bool,
 }
 
 impl Default for LabCheckConfig {
@@ -55,9 +74,18 @@ impl Default for LabCheckConfig {
             swings: [0.05, 1.4],
             seconds: [20.0, 60.0],
             noise: [0.002, 0.01],
+            offsets: [0.0, 0.0],
+            rates: None,
+            mixed: false,
         }
     }
 }
+
+/// The video and logger rates a source rate is drawn from, Hz.
+pub const VIDEO_RATES: [f64; 17] = [
+    5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 24.0, 25.0, 30.0, 40.0, 50.0, 60.0, 100.0, 120.0, 200.0,
+    240.0,
+];
 
 /// The estimate at one point of a recording.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -134,12 +162,18 @@ pub struct Outcome {
     pub rate: f64,
     /// Tracking noise, rad.
     pub noise: f64,
+    /// Sensor offset, rad.
+    pub offset: f64,
     /// Seconds recorded.
     pub seconds: f64,
     /// After the first [`WINDOW`] measurements.
     pub first: At,
     /// At the end.
     pub end: At,
+    /// The physics peer after the first [`WINDOW`] measurements.
+    pub peer_first: Reading,
+    /// The physics peer at the end.
+    pub peer_end: Reading,
 }
 
 /// The dissipations in turn, with their real sizes.
@@ -148,6 +182,17 @@ const EFFECTS: [(EffectKind, [f64; 2]); 3] = [
     (EffectKind::Drag, [0.01, 0.1]),
     (EffectKind::Coulomb, [0.02, 0.2]),
 ];
+
+/// The mixed dissipation's parts at the sizes real rigs show: viscous
+/// damping (1/s), drag on the bob (1/rad) and pivot Coulomb friction
+/// (rad/s^2).
+pub const MIXED: [(EffectKind, [f64; 2]); 3] = [
+    (EffectKind::Viscous, [0.002, 0.04]),
+    (EffectKind::Drag, [0.004, 0.046]),
+    (EffectKind::Coulomb, [0.0, 0.07]),
+];
+/// The mixed dissipation's name in tables.
+pub const MIXED_NAME: &str = "mixed";
 
 /// Runs the estimator of `model` over the recordings of `cfg`, at the
 /// lab's `g` (declared), each imported at the blob's interval.
@@ -160,44 +205,68 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
             && range(cfg.swings, true)
             && range(cfg.seconds, true)
             && range(cfg.noise, false)
-            && cfg.noise[0] >= 0.0,
-        "lab-check: lengths, swings and durations need finite ranges LO <= HI above 0, the noise a finite range from 0"
+            && cfg.noise[0] >= 0.0
+            && range(cfg.offsets, false)
+            && cfg.rates.is_none_or(|r| range(r, true)),
+        "lab-check: lengths, swings, durations and rates need finite ranges LO <= HI above 0, the noise a finite range from 0, the offsets a finite range LO <= HI"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let rig = model.blob().body.rig;
+    let dt = f64::from(model.blob().body.dt);
+    let turns = EFFECTS.len() + usize::from(cfg.mixed);
     let mut out = Vec::with_capacity(cfg.recordings);
     for k in 0..cfg.recordings {
-        let (kind, range) = EFFECTS[k % EFFECTS.len()];
-        let spec = draw(&mut rng, cfg, rig, kind, range);
-        let (first, end) =
-            estimate(model, &spec, &mut rng, None, Some(LAB_G)).with_context(|| {
-                format!(
-                    "lab recording {k} ({:.3} m, {:.3} rad)",
-                    spec.length, spec.theta0
-                )
-            })?;
+        let mixed = k % turns == EFFECTS.len();
+        let (kind, range) = EFFECTS[k % turns % EFFECTS.len()];
+        let mut spec = draw(&mut rng, cfg, rig, kind, range);
+        if mixed {
+            spec.effects = draw_mixed(&mut rng);
+        }
+        let name = if mixed { MIXED_NAME } else { kind.name() };
+        let context = || {
+            format!(
+                "lab recording {k} ({:.3} m, {:.3} rad)",
+                spec.length, spec.theta0
+            )
+        };
+        let r = import_at(&spec.record(&mut rng), dt).with_context(context)?;
+        let (first, end) = blob_reads(model, &r, dt, Some(LAB_G)).with_context(context)?;
+        let (peer_first, peer_end) = peer_reads(&r, dt, LAB_G, rig).with_context(context)?;
         let Some(effect) = spec.effects.first() else {
             anyhow::bail!("lab recording {k} has no dissipation");
         };
         out.push(Outcome {
-            effect: kind.name().into(),
+            effect: name.into(),
             coefficient: effect.coefficient,
             length: spec.length,
             theta0: spec.theta0,
             rate: spec.rate,
             noise: spec.noise,
+            offset: spec.offset,
             seconds: spec.duration,
             first,
             end,
+            peer_first,
+            peer_end,
         });
     }
     Ok(out)
 }
 
+/// The mixed dissipation from `rng`: each of [`MIXED`] uniform over its
+/// range.
+fn draw_mixed(rng: &mut ChaCha8Rng) -> Vec<Effect> {
+    MIXED
+        .iter()
+        .map(|&(kind, [lo, hi])| Effect::new(kind, rng.random_range(lo..hi)))
+        .collect()
+}
+
 /// One recording of `cfg`'s kind from `rng`: the rig's length and release
 /// angle log-uniform, the dissipation `kind` uniform over `range`, a
-/// rate with at least 12 samples a period (evenly stamped or, three times
-/// in ten, with a logger's jitter), the noise and duration uniform.
+/// rate with at least 12 samples a period or one of `cfg.rates` (evenly
+/// stamped or, three times in ten, with a logger's jitter), the noise,
+/// duration and offset uniform.
 pub fn draw(
     rng: &mut ChaCha8Rng,
     cfg: &LabCheckConfig,
@@ -210,11 +279,18 @@ pub fn draw(
     let theta0 = log_uniform(rng, cfg.swings);
     // At least 12 samples a period.
     let period = 2.0 * std::f64::consts::PI / rig.w2(LAB_G, length).sqrt();
-    let rates: Vec<f64> = RATES.into_iter().filter(|r| r * period >= 12.0).collect();
+    let rates: Vec<f64> = match cfg.rates {
+        None => RATES.into_iter().filter(|r| r * period >= 12.0).collect(),
+        Some([lo, hi]) => VIDEO_RATES
+            .into_iter()
+            .filter(|r| (lo..=hi).contains(r))
+            .collect(),
+    };
+    let fallback = cfg.rates.map_or(RATES[RATES.len() - 1], |[lo, _]| lo);
     let rate = rates
         .get(rng.random_range(0..rates.len().max(1)))
         .copied()
-        .unwrap_or(RATES[RATES.len() - 1]);
+        .unwrap_or(fallback);
     let stamps = if rng.random_bool(0.3) {
         Stamps::Jittered
     } else {
@@ -222,6 +298,12 @@ pub fn draw(
     };
     let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
     let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
+    let [o0, o1] = cfg.offsets;
+    let offset = if o0 < o1 {
+        rng.random_range(o0..o1)
+    } else {
+        o0
+    };
     LabSpec {
         case: Case::of_dissipation(kind),
         length,
@@ -233,8 +315,9 @@ pub fn draw(
         noise,
         quantum: 0.1f64.to_radians(),
         effects: vec![Effect::new(kind, coefficient)],
-        offset: 0.0,
+        offset,
         forcing: None,
+        artefacts: crate::data::lab::Artefacts::NONE,
     }
 }
 
@@ -250,25 +333,49 @@ pub fn estimate(
     g: Option<f64>,
 ) -> Result<(At, At)> {
     let dt = dt.unwrap_or(f64::from(model.blob().body.dt));
+    let r = import_at(&spec.record(rng), dt)?;
+    blob_reads(model, &r, dt, g)
+}
+
+/// `rec` imported as a user imports it, at `dt`.
+fn import_at(rec: &import::Recording, dt: f64) -> Result<Rollout> {
     let opts = ImportOptions {
         dt,
         ..ImportOptions::default()
     };
+    import::to_rollout(rec, 0, &opts)
+}
+
+/// `model`'s estimator over `r` (sampled at `dt`) at the declared `g`
+/// (`None`: not declared): after the first [`WINDOW`] measurements and at
+/// the end.
+fn blob_reads(model: &Model<'_>, r: &Rollout, dt: f64, g: Option<f64>) -> Result<(At, At)> {
     let mut fresh = Estimator::new(model);
     if let Some(g) = g {
         fresh = fresh.with_gravity(g as f32)?;
     }
-    let rec = spec.record(rng);
-    let r = import::to_rollout(&rec, 0, &opts)?;
     let mut first = None;
     let mut n = 0;
-    let tracked = track_each(&mut fresh, &r, dt, None, |_, o| {
+    let tracked = track_each(&mut fresh, r, dt, None, |_, o| {
         n += 1;
         if n == WINDOW {
             first = Some(At::of(o, n));
         }
     })?;
     let end = At::of(&tracked.out, tracked.measured);
+    Ok((first.unwrap_or_else(|| end.clone()), end))
+}
+
+/// The physics peer over `r` (sampled at `dt`) at `g`, reading `rig`'s
+/// length: after the first [`WINDOW`] measurements and at the end.
+fn peer_reads(r: &Rollout, dt: f64, g: f64, rig: Rig) -> Result<(Reading, Reading)> {
+    let mut first = None;
+    let mut filter = Peer::new(PeerConfig::new(g, rig));
+    let end = peer::track_each(&mut filter, r, dt, |n, p| {
+        if n == WINDOW {
+            first = Some(p.reading());
+        }
+    })?;
     Ok((first.unwrap_or_else(|| end.clone()), end))
 }
 
@@ -306,21 +413,36 @@ pub struct Counts {
     pub median_end_error: f64,
 }
 
+/// What one reader (the blob or the peer) made of a recording: the
+/// relative error and whether trusted, after the first [`WINDOW`]
+/// measurements and at the end.
+type Read = [(f64, bool); 2];
+
+/// The blob's reads of `o`.
+fn blob_read(o: &Outcome) -> Read {
+    [&o.first, &o.end].map(|a| (a.error(o.length), a.trust.is_trusted()))
+}
+
+/// The physics peer's reads of `o`.
+fn peer_read(o: &Outcome) -> Read {
+    [&o.peer_first, &o.peer_end].map(|r| (r.error(o.length), r.trusted()))
+}
+
 impl Counts {
-    fn of<'a>(group: impl Iterator<Item = &'a Outcome>) -> Counts {
+    fn of<'a>(group: impl Iterator<Item = &'a Outcome>, read: fn(&Outcome) -> Read) -> Counts {
         let mut c = Counts::default();
         let mut errors = Vec::new();
         for o in group {
             c.n += 1;
-            let (e1, e2) = (o.first.error(o.length), o.end.error(o.length));
+            let [(e1, t1), (e2, t2)] = read(o);
             errors.push(e2);
             c.end_within_2 += usize::from(e2 <= 0.02);
             c.first_within_5 += usize::from(e1 <= 0.05);
-            let wrong = |e: f64, a: &At| e > 0.05 && a.trust.is_trusted();
-            c.wrong_trusted += usize::from(wrong(e1, &o.first) || wrong(e2, &o.end));
+            let wrong = |e: f64, trusted: bool| e > 0.05 && trusted;
+            c.wrong_trusted += usize::from(wrong(e1, t1) || wrong(e2, t2));
             if e2 <= 0.05 {
                 c.trusted_of_right[1] += 1;
-                c.trusted_of_right[0] += usize::from(o.end.trust.is_trusted());
+                c.trusted_of_right[0] += usize::from(t2);
             }
         }
         c.median_end_error = crate::metrics::median(&mut errors);
@@ -328,80 +450,142 @@ impl Counts {
     }
 }
 
-/// The figures: all, per effect, per swing size.
+/// One group's counts, the blob's and the peer's.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Row {
+    /// The group, as the table names it.
+    pub name: String,
+    /// The blob's.
+    pub blob: Counts,
+    /// The physics peer's.
+    pub peer: Counts,
+}
+
+impl Row {
+    fn of(name: String, outcomes: &[Outcome], keep: impl Fn(&Outcome) -> bool) -> Row {
+        Row {
+            name,
+            blob: Counts::of(outcomes.iter().filter(|o| keep(o)), blob_read),
+            peer: Counts::of(outcomes.iter().filter(|o| keep(o)), peer_read),
+        }
+    }
+}
+
+/// The figures: all, then per effect, offset, source rate and swing.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct Figures {
-    /// Every recording.
+    /// Every recording, the blob's.
     pub all: Counts,
-    /// Per dissipation.
-    pub by_effect: Vec<(String, Counts)>,
-    /// Per release angle, rad: `[lo, hi)`.
-    pub by_swing: Vec<([f64; 2], Counts)>,
+    /// Every recording, the physics peer's.
+    pub peer: Counts,
+    /// The tables, each titled by what it groups by.
+    pub tables: Vec<(String, Vec<Row>)>,
 }
 
 /// Release-angle bins of the table, rad.
 pub const SWING_BINS: [[f64; 2]; 4] = [[0.0, 0.15], [0.15, 0.5], [0.5, 1.0], [1.0, 10.0]];
+/// Offset bins, `|offset|` in rad: none, then `(lo, hi]`.
+pub const OFFSET_BINS: [[f64; 2]; 4] = [[0.0, 0.0], [0.0, 0.03], [0.03, 0.06], [0.06, 10.0]];
+/// Source-rate bins, Hz: `[lo, hi)`.
+pub const RATE_BINS: [[f64; 2]; 4] = [[0.0, 12.0], [12.0, 30.0], [30.0, 100.0], [100.0, 1e6]];
 
 /// The figures of `outcomes`.
 pub fn figures(outcomes: &[Outcome]) -> Figures {
+    let mut effects: Vec<&str> = EFFECTS.iter().map(|(k, _)| k.name()).collect();
+    effects.push(MIXED_NAME);
+    let by_effect = std::iter::once(Row::of("all".into(), outcomes, |_| true))
+        .chain(
+            effects
+                .into_iter()
+                .map(|name| Row::of(name.into(), outcomes, |o| o.effect == name)),
+        )
+        .collect();
+    let by_offset = OFFSET_BINS
+        .iter()
+        .map(|&[lo, hi]| {
+            let name = match (lo, hi) {
+                (_, 0.0) => "no offset".to_string(),
+                (0.0, _) => format!("offset up to {hi} rad"),
+                (_, h) if h > 5.0 => format!("offset {lo} rad or more"),
+                _ => format!("offset {lo} to {hi} rad"),
+            };
+            Row::of(name, outcomes, |o| {
+                let a = o.offset.abs();
+                if hi == 0.0 {
+                    a == 0.0
+                } else {
+                    lo < a && a <= hi
+                }
+            })
+        })
+        .collect();
+    let by_rate = RATE_BINS
+        .iter()
+        .map(|&[lo, hi]| {
+            let name = match (lo, hi) {
+                (0.0, _) => format!("below {hi} Hz"),
+                (_, h) if h > 1e5 => format!("{lo} Hz or more"),
+                _ => format!("{lo} to {hi} Hz"),
+            };
+            Row::of(name, outcomes, |o| o.rate >= lo && o.rate < hi)
+        })
+        .collect();
+    let by_swing = SWING_BINS
+        .iter()
+        .map(|&[lo, hi]| {
+            let name = if hi > 5.0 {
+                format!("released at {lo} rad or more")
+            } else {
+                format!("released at {lo} to {hi} rad")
+            };
+            Row::of(name, outcomes, |o| o.theta0 >= lo && o.theta0 < hi)
+        })
+        .collect();
     Figures {
-        all: Counts::of(outcomes.iter()),
-        by_effect: EFFECTS
-            .iter()
-            .map(|(k, _)| {
-                let name = k.name();
-                (
-                    name.to_string(),
-                    Counts::of(outcomes.iter().filter(|o| o.effect == name)),
-                )
-            })
-            .collect(),
-        by_swing: SWING_BINS
-            .iter()
-            .map(|&[lo, hi]| {
-                (
-                    [lo, hi],
-                    Counts::of(outcomes.iter().filter(|o| o.theta0 >= lo && o.theta0 < hi)),
-                )
-            })
-            .collect(),
+        all: Counts::of(outcomes.iter(), blob_read),
+        peer: Counts::of(outcomes.iter(), peer_read),
+        tables: vec![
+            ("effect".into(), by_effect),
+            ("offset".into(), by_offset),
+            ("source rate".into(), by_rate),
+            ("swing".into(), by_swing),
+        ],
     }
 }
 
-/// The figures as a markdown table.
+/// The figures as markdown: a table per grouping, each figure the blob's
+/// and, beside it, the physics peer's; empty groups left out.
 pub fn markdown(f: &Figures) -> String {
     let mut s = String::from(
-        "| recordings | n | within 2% at the end | within 5% after 64 | more than 5% off and trusted | trusted, of those within 5% at the end | median error at the end |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+        "Each figure the blob's, then the physics peer's (`trainer_core::peer`: an augmented-state EKF on the pendulum's ODE, on the same imported recording).\n",
     );
-    let row = |name: &str, c: &Counts| {
-        let pct = |k: usize, n: usize| {
-            if n == 0 {
-                "-".to_string()
-            } else {
-                format!("{k} ({:.0}%)", 100.0 * k as f64 / n as f64)
-            }
-        };
-        format!(
-            "| {name} | {} | {} | {} | {} | {} | {:.2}% |\n",
-            c.n,
+    let pct = |k: usize, n: usize| {
+        if n == 0 {
+            "-".to_string()
+        } else {
+            format!("{k} ({:.0}%)", 100.0 * k as f64 / n as f64)
+        }
+    };
+    let cells = |c: &Counts| {
+        [
             pct(c.end_within_2, c.n),
             pct(c.first_within_5, c.n),
             pct(c.wrong_trusted, c.n),
             pct(c.trusted_of_right[0], c.trusted_of_right[1]),
-            100.0 * c.median_end_error
-        )
+            format!("{:.2}%", 100.0 * c.median_end_error),
+        ]
     };
-    s.push_str(&row("all", &f.all));
-    for (name, c) in &f.by_effect {
-        s.push_str(&row(name, c));
-    }
-    for ([lo, hi], c) in &f.by_swing {
-        let name = if *hi > 5.0 {
-            format!("released at {lo} rad or more")
-        } else {
-            format!("released at {lo} to {hi} rad")
-        };
-        s.push_str(&row(&name, c));
+    for (by, rows) in &f.tables {
+        s.push_str(&format!(
+            "\nBy {by}:\n\n| recordings | n | within 2% at the end | peer | within 5% after 64 | peer | more than 5% off and trusted | peer | trusted, of those within 5% at the end | peer | median error at the end | peer |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+        ));
+        for row in rows.iter().filter(|r| r.blob.n > 0) {
+            s.push_str(&format!("| {} | {} |", row.name, row.blob.n));
+            for (b, p) in cells(&row.blob).iter().zip(cells(&row.peer)) {
+                s.push_str(&format!(" {b} | {p} |"));
+            }
+            s.push('\n');
+        }
     }
     s
 }
@@ -431,7 +615,18 @@ mod tests {
         }
     }
 
+    /// The blob's `first` and `end` beside a peer right (0.1%) and
+    /// trusted at both points.
     fn outcome(theta0: f64, first: At, end: At) -> Outcome {
+        let peer = Reading {
+            measured: 64,
+            length: 1.001,
+            std: 0.001,
+            damping: 0.05,
+            offset: 0.0,
+            nis: Some(1.0),
+            doubts: vec![],
+        };
         Outcome {
             effect: "viscous".into(),
             coefficient: 0.05,
@@ -439,9 +634,12 @@ mod tests {
             theta0,
             rate: 30.0,
             noise: 0.005,
+            offset: 0.0,
             seconds: 30.0,
             first,
             end,
+            peer_first: peer.clone(),
+            peer_end: peer,
         }
     }
 
@@ -465,9 +663,18 @@ mod tests {
         assert_eq!(c.first_within_5, 2);
         assert_eq!(c.wrong_trusted, 1);
         assert_eq!(c.trusted_of_right, [2, 3]);
+        assert_eq!(
+            (f.peer.n, f.peer.end_within_2, f.peer.wrong_trusted),
+            (4, 4, 0)
+        );
         // Each swing bin holds one recording.
-        assert!(f.by_swing.iter().all(|(_, c)| c.n == 1), "{:?}", f.by_swing);
-        assert!(markdown(&f).contains("| all | 4 | 2 (50%) | 2 (50%) | 1 (25%) | 2 (67%) |"));
+        let (_, by_swing) = &f.tables[3];
+        assert!(by_swing.iter().all(|r| r.blob.n == 1), "{by_swing:?}");
+        let md = markdown(&f);
+        assert!(
+            md.contains("| all | 4 | 2 (50%) | 4 (100%) | 2 (50%) | 4 (100%) | 1 (25%) | 0 (0%) | 2 (67%) | 4 (100%) |"),
+            "{md}"
+        );
     }
 
     /// A recording is labelled with the case of its dissipation.

@@ -57,7 +57,7 @@ pub fn run(a: Args) -> Result<()> {
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
     super::say(&format!(
-        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1",
+        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1, a measurement refused above {:.1} times the mean innovation, a source flagged below {:.1} samples a period",
         out.display(),
         out_bytes.len(),
         report.envelope_max_off,
@@ -71,7 +71,9 @@ pub fn run(a: Args) -> Result<()> {
         report.nis_law[0],
         report.nis_law[1],
         report.max_nis,
-        report.max_rate_mismatch
+        report.max_rate_mismatch,
+        report.max_step_nis,
+        report.min_samples_per_period
     ))?;
     let accuracy = percent(report.config.accurate);
     for c in &report.check {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use estimator::Estimator;
-use trainer_core::data;
+use trainer_core::data::{self, SourceMeta};
 use trainer_core::track::figure::{self, Trace};
 use trainer_core::track::track_each;
 
@@ -15,7 +15,10 @@ pub struct Args {
     #[arg(long, default_value = "weights/pendulum.kkf")]
     weights: PathBuf,
     /// CSV `rollout,t,theta,theta_dot` on the model's interval; a gap of
-    /// whole steps in `t` is bridged by the filter's prediction.
+    /// whole steps in `t` is bridged by the filter's prediction. Where its
+    /// sidecar records how `koopman import` found each recording sampled,
+    /// the estimator is told the source's own interval and the glitches
+    /// the import dropped are shown.
     data: PathBuf,
     /// Use only the first N measurements of each rollout (all when absent).
     #[arg(long)]
@@ -42,6 +45,7 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
     let ds = data::read(&a.data, 2)?;
+    let sources = data::read_sources(&a.data)?;
     let dt = f64::from(model.blob().body.dt);
     let fresh = match a.g {
         Some(g) => Estimator::new(&model)
@@ -66,16 +70,39 @@ pub fn run(a: Args) -> Result<()> {
         let effect_head = effect_label
             .as_ref()
             .map_or(String::new(), |l| format!("{l:>18}  {:>10}  ", "std"));
+        let glitch_head = if sources.is_empty() {
+            String::new()
+        } else {
+            format!("{:>8}  ", "glitches")
+        };
         super::say(&format!(
-            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  trust",
+            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  {:>12}  {:>8}  {:>8}  {glitch_head}trust",
             rig.length_label(),
             "std",
-            "sigma"
+            "sigma",
+            "offset (rad)",
+            "std",
+            "outliers"
         ))?;
     }
     for r in &ds.rollouts {
+        let source = sources.iter().find(|s| s.rollout == r.id);
+        let mut est = match source {
+            Some(s) => fresh
+                .clone()
+                .with_source_interval(s.median_interval as f32)
+                .map_err(|e| {
+                    anyhow::anyhow!(
+                        "{}: rollout {}: source interval {} s: {e}",
+                        a.data.display(),
+                        r.id,
+                        s.median_interval
+                    )
+                })?,
+            None => fresh.clone(),
+        };
         let mut steps = Vec::new();
-        let tracked = track_each(&mut fresh.clone(), r, dt, a.steps, |t, o| {
+        let tracked = track_each(&mut est, r, dt, a.steps, |t, o| {
             if a.plot.is_some() {
                 steps.push((t, o.clone()));
             }
@@ -110,7 +137,7 @@ pub fn run(a: Args) -> Result<()> {
         let trusted = out.trust.is_trusted();
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         if a.json {
-            let v = serde_json::json!({
+            let mut v = serde_json::json!({
                 "rollout": r.id, "params": out.params, "param_std": out.param_std,
                 "param_names": names, "coordinate": out.coordinate,
                 "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
@@ -119,19 +146,31 @@ pub fn run(a: Args) -> Result<()> {
                 "held": out.held,
                 "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
                 "rig": rig, "length_label": rig.length_label(),
+                "offset": out.offset, "offset_std": out.offset_std, "outliers": out.outliers,
             });
+            if let Some(s) = source {
+                add_source(&mut v, s);
+            }
             super::say(&v.to_string())?;
         } else {
             let effect_cols = effect_label.as_ref().map_or(String::new(), |_| {
                 format!("{:>18.4}  {:>10.4}  ", out.params[1], out.param_std[1])
             });
+            let glitch_col = match (sources.is_empty(), source) {
+                (true, _) => String::new(),
+                (false, Some(s)) => format!("{:>8}  ", s.glitches),
+                (false, None) => format!("{:>8}  ", "-"),
+            };
             super::say(&format!(
-                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {}{}",
+                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {:>12}  {:>8}  {:>8}  {glitch_col}{}{}",
                 r.id,
                 n,
                 out.params[0],
                 out.param_std[0],
                 out.sigma[0],
+                or_dash(out.offset),
+                or_dash(out.offset_std),
+                out.outliers,
                 out.trust.as_str(),
                 if reasons.is_empty() {
                     String::new()
@@ -154,6 +193,19 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A figure to 4 decimals, `-` where there is none yet.
+fn or_dash(v: Option<f32>) -> String {
+    v.map_or_else(|| "-".to_string(), |v| format!("{v:.4}"))
+}
+
+/// Adds to an estimate's JSON how the import found its recording sampled.
+fn add_source(v: &mut serde_json::Value, s: &SourceMeta) {
+    v["source_interval"] = s.median_interval.into();
+    v["source_largest_gap"] = s.largest_gap.into();
+    v["interpolated"] = s.interpolated.into();
+    v["glitches"] = s.glitches.into();
 }
 
 /// The unit of an effect named in a blob (`?` for a name no effect has).

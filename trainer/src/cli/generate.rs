@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use trainer_core::data;
+use trainer_core::data::lab::{Artefacts, Extras, SuiteOptions};
 use trainer_core::physics::Effect;
 use trainer_core::protocol::TEST_LENGTHS;
 
@@ -37,12 +38,79 @@ pub struct Args {
     /// truth.
     #[arg(long)]
     lab: Option<u64>,
+    /// What real rigs add to the lab recordings (each drawn after the case's own).
+    #[command(flatten)]
+    real: RealArgs,
+}
+
+/// What `--lab` adds to every recording, as real rigs show it (none by
+/// default: a seed's recordings as they always were).
+#[derive(Debug, clap::Args)]
+struct RealArgs {
+    /// An angle offset, rad, uniform over [-MAX, MAX], added to the case's own.
+    #[arg(long, requires = "lab", value_name = "MAX")]
+    offset: Option<f64>,
+    /// Drag on the bob, 1/rad: LO,HI, uniform (real rigs: 0.004,0.046).
+    #[arg(long, requires = "lab", value_delimiter = ',')]
+    drag: Option<Vec<f64>>,
+    /// Coulomb friction at the pivot, rad/s^2: LO,HI, uniform (real rigs: 0,0.07).
+    #[arg(long, requires = "lab", value_delimiter = ',')]
+    coulomb: Option<Vec<f64>>,
+    /// Release angles, rad: LO,HI, log-uniform (real rigs: 0.03,1.5).
+    #[arg(long, requires = "lab", value_delimiter = ',')]
+    swings: Option<Vec<f64>>,
+    /// Frame rates, Hz, one drawn per video recording (real rigs: 5 to
+    /// 240), not held to 12 samples a period.
+    #[arg(long, requires = "lab", value_delimiter = ',')]
+    rates: Option<Vec<f64>>,
+    /// Seconds recorded: LO,HI, log-uniform (real rigs: 20,3600).
+    #[arg(long, requires = "lab", value_delimiter = ',')]
+    seconds: Option<Vec<f64>>,
+    /// Frame times rounded to this step, s (0.001 or 0.01).
+    #[arg(long, requires = "lab", default_value_t = 0.0)]
+    stamp_round: f64,
+    /// Share of frames dropped (some in runs leaving gaps of up to 0.3 s).
+    #[arg(long, requires = "lab", default_value_t = 0.0)]
+    dropped: f64,
+    /// Share of frames whose angle jumps by 0.1 to 0.5 rad for that frame.
+    #[arg(long, requires = "lab", default_value_t = 0.0)]
+    spikes: f64,
+}
+
+impl RealArgs {
+    /// The suite's options, checked.
+    fn options(&self) -> Result<SuiteOptions> {
+        let pair = |name: &str, v: &Option<Vec<f64>>| -> Result<Option<[f64; 2]>> {
+            match v.as_deref() {
+                None => Ok(None),
+                Some(&[lo, hi]) => Ok(Some([lo, hi])),
+                Some(_) => anyhow::bail!("--{name} takes two values, LO,HI"),
+            }
+        };
+        let opts = SuiteOptions {
+            extras: Extras {
+                offset: self.offset.unwrap_or(0.0),
+                drag: pair("drag", &self.drag)?.unwrap_or_default(),
+                coulomb: pair("coulomb", &self.coulomb)?.unwrap_or_default(),
+                artefacts: Artefacts {
+                    stamp_round: self.stamp_round,
+                    dropped: self.dropped,
+                    spikes: self.spikes,
+                },
+            },
+            swings: pair("swings", &self.swings)?,
+            rates: self.rates.clone(),
+            seconds: pair("seconds", &self.seconds)?,
+        };
+        opts.check()?;
+        Ok(opts)
+    }
 }
 
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     if let Some(seed) = a.lab {
-        return lab(seed, &a.out);
+        return lab(seed, &a.real.options()?, &a.out);
     }
     let physics = data::Physics {
         rig: a.rig,
@@ -70,25 +138,29 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Writes the lab suite of `seed` into `out`.
-fn lab(seed: u64, out: &std::path::Path) -> Result<()> {
+/// Writes the lab suite of `seed`, drawn with `opts`, into `out`.
+fn lab(seed: u64, opts: &SuiteOptions, out: &std::path::Path) -> Result<()> {
     std::fs::create_dir_all(out)?;
     let mut truth = Vec::new();
-    for (k, (spec, rec)) in data::lab::suite(seed).into_iter().enumerate() {
+    for (k, (spec, rec)) in data::lab::suite_with(seed, opts).into_iter().enumerate() {
         let name = format!("lab-{seed}-{k}-{}.csv", spec.case.name().replace('+', "-"));
         let mut text = String::from("t,theta\n");
         for (t, v) in rec.t.iter().zip(&rec.theta) {
             text.push_str(&format!("{t:.6},{v:.6}\n"));
         }
         trainer_core::io::write_atomic(&out.join(&name), text.as_bytes())?;
-        truth.push(serde_json::json!({
+        let mut entry = serde_json::json!({
             "file": name, "case": spec.case.name(), "length": spec.length,
             "rig": spec.rig, "theta0": spec.theta0, "duration": spec.duration,
             "rate": spec.rate, "stamps": format!("{:?}", spec.stamps), "noise": spec.noise,
             "quantum": spec.quantum, "offset": spec.offset,
             "effects": spec.effects.iter().map(|e| (e.name(), e.coefficient)).collect::<Vec<_>>(),
             "forcing": spec.forcing,
-        }));
+        });
+        if !spec.artefacts.is_none() {
+            entry["artefacts"] = serde_json::to_value(spec.artefacts)?;
+        }
+        truth.push(entry);
     }
     trainer_core::io::write_atomic(
         &out.join("lab.json"),

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use trainer_core::data::{self, import};
+use trainer_core::data::{self, SourceMeta, import};
 
 use super::RecordingArgs;
 
@@ -25,7 +25,7 @@ pub struct Args {
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     let opts = a.recording.options()?;
-    let ds = import::import(&a.inputs, &opts)?;
+    let (ds, sources) = import::import_with_sources(&a.inputs, &opts)?;
     let dir = a
         .out
         .parent()
@@ -36,8 +36,8 @@ pub fn run(a: Args) -> Result<()> {
         .file_stem()
         .and_then(|s| s.to_str())
         .context("--out needs a file name")?;
-    let csv = data::write(&ds, dir, name)?;
-    for (p, r) in a.inputs.iter().zip(&ds.rollouts) {
+    let csv = data::write_imported(&ds, &sources, dir, name)?;
+    for ((p, r), s) in a.inputs.iter().zip(&ds.rollouts).zip(&sources) {
         super::say(&format!(
             "{} -> rollout {}: {} steps of {} s",
             p.display(),
@@ -45,7 +45,24 @@ pub fn run(a: Args) -> Result<()> {
             r.xs.len(),
             opts.dt
         ))?;
+        eprintln!("{}: {}", p.display(), sampling(s, opts.dt));
     }
     super::say(&format!("wrote {}", csv.display()))?;
     Ok(())
+}
+
+/// How a recording was sampled, in words.
+fn sampling(s: &SourceMeta, dt: f64) -> String {
+    format!(
+        "sampled every {:.4} s (median), largest interval {:.4} s, {} {dt} s, {} glitch{} dropped",
+        s.median_interval,
+        s.largest_gap,
+        if s.interpolated {
+            "interpolated to"
+        } else {
+            "not interpolated at"
+        },
+        s.glitches,
+        if s.glitches == 1 { "" } else { "es" }
+    )
 }

@@ -9,8 +9,9 @@ use trainer_core::labcheck::{self, LabCheckConfig};
 
 /// Estimates the length of lab-like recordings (strings of 0.1 to 1.5 m
 /// at g = 9.81, 12 to 100 Hz, noise and quantisation, viscous, drag or
-/// Coulomb friction) with a blob, as a user would, and tables how often
-/// it is right and trusted.
+/// Coulomb friction) with a blob, as a user would, and with the physics
+/// peer (an augmented-state EKF on the pendulum's ODE), and tables how
+/// often each is right and trusted.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Weights blob (one trained on lab-like recordings: `koopman train
@@ -29,6 +30,18 @@ pub struct Args {
     /// Tracking noise, rad: LO,HI (each recording's drawn uniformly).
     #[arg(long, value_delimiter = ',', default_values_t = LabCheckConfig::default().noise)]
     noise: Vec<f64>,
+    /// Sensor offsets, rad: LO,HI (each recording's drawn uniformly;
+    /// default none).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_values_t = LabCheckConfig::default().offsets)]
+    offsets: Vec<f64>,
+    /// Source rates, Hz: LO,HI (the common video rates within, 5 to 240;
+    /// default the lab's 12 to 100 Hz with at least 12 samples a period).
+    #[arg(long, value_delimiter = ',')]
+    rates: Option<Vec<f64>>,
+    /// Add a fourth dissipation in turn: viscous damping, drag and Coulomb
+    /// friction together, at real rigs' sizes.
+    #[arg(long)]
+    mixed: bool,
     /// Write labcheck.json (every recording and the figures) and
     /// labcheck.md here.
     #[arg(long)]
@@ -47,18 +60,40 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--swings takes two angles, LO,HI");
     };
     anyhow::ensure!(0.0 < s0 && s0 < s1, "--swings: 0 < LO < HI");
+    let [o0, o1] = a.offsets[..] else {
+        anyhow::bail!("--offsets takes two angles, LO,HI");
+    };
+    anyhow::ensure!(o0 <= o1, "--offsets: LO <= HI");
+    let rates = match a.rates.as_deref() {
+        None => None,
+        Some(&[r0, r1]) if 0.0 < r0 && r0 <= r1 => Some([r0, r1]),
+        Some(_) => anyhow::bail!("--rates takes two rates, LO,HI: 0 < LO <= HI"),
+    };
     let cfg = LabCheckConfig {
         seed: a.seed,
         recordings: a.recordings,
         noise: [lo, hi],
         swings: [s0, s1],
+        offsets: [o0, o1],
+        rates,
+        mixed: a.mixed,
         ..LabCheckConfig::default()
     };
     anyhow::ensure!(cfg.recordings > 0, "--recordings must be at least 1");
     let outcomes = labcheck::run(&model, &cfg)?;
     let figures = labcheck::figures(&outcomes);
+    let mut drawn = String::new();
+    if cfg.offsets != [0.0, 0.0] {
+        drawn.push_str(&format!(", offsets {o0} to {o1} rad"));
+    }
+    if let Some([r0, r1]) = cfg.rates {
+        drawn.push_str(&format!(", sources at {r0} to {r1} Hz"));
+    }
+    if cfg.mixed {
+        drawn.push_str(", a mixed dissipation in turn");
+    }
     let md = format!(
-        "{} recordings (seed {}), estimated with {} at g = 9.81 declared.\n\n{}",
+        "{} recordings (seed {}{drawn}), estimated with {} at g = 9.81 declared.\n\n{}",
         cfg.recordings,
         cfg.seed,
         a.weights.display(),

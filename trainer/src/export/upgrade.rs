@@ -1,5 +1,6 @@
 //! Blobs of earlier formats read and upgraded to the current one, their
-//! model, filter and schedule kept byte for byte: format 9 (before the
+//! model, filter and schedule kept byte for byte: format 10 (before the
+//! outlier gate and the source's samples a period), 9 (before the
 //! consistency check's law), 8 (before the consistency check), 7 (before
 //! the rig was recorded: every blob made before format 8 is a rod's, the
 //! protocol's) and 6 (before the unevenness check). `koopman calibrate`
@@ -44,6 +45,8 @@ impl<'a> TrustSpecV6<'a> {
             max_nis: f32::MAX,
             nis_law: [0.0; 2],
             max_rate_mismatch: f32::MAX,
+            max_step_nis: 0.0,
+            min_samples_per_period: 0.0,
         }
     }
 }
@@ -93,7 +96,33 @@ impl<'a> TrustSpecV9<'a> {
     }
 }
 
-/// What follows the rig and family in the body of formats 6 to 9 (the
+/// The trust section of format 10: format 8's, then the consistency
+/// check with its law and the rate check, without the outlier gate and
+/// the source's samples a period.
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+struct TrustSpecV10<'a> {
+    #[serde(borrow)]
+    v8: TrustSpecV8<'a>,
+    max_nis: f32,
+    nis_law: [f32; 2],
+    max_rate_mismatch: f32,
+}
+
+impl<'a> TrustSpecV10<'a> {
+    /// The current section, no measurement refused and every source
+    /// passing (until calibrated again).
+    fn current(self) -> TrustSpec<'a> {
+        TrustSpec {
+            max_nis: self.max_nis,
+            nis_law: self.nis_law,
+            max_rate_mismatch: self.max_rate_mismatch,
+            ..self.v8.current()
+        }
+    }
+}
+
+/// What follows the rig and family in the body of formats 6 to 10 (the
 /// gravity in 6 and 7, which record neither), with their trust section
 /// `T`.
 #[derive(Deserialize)]
@@ -136,7 +165,7 @@ impl<'a, T> BodyV7<'a, T> {
     }
 }
 
-/// The body of formats 8 and 9.
+/// The body of formats 8 to 10.
 #[derive(Deserialize)]
 #[cfg_attr(test, derive(serde::Serialize))]
 struct BodyV8<'a, T> {
@@ -186,9 +215,10 @@ pub struct Current {
 }
 
 /// The blob's bytes in the current format: as they are, or a blob of
-/// format 6 to 9 upgraded (before 8 a rod's; format 6 with every
+/// format 6 to 10 upgraded (before 8 a rod's; format 6 with every
 /// unevenness trusted, every one before 9 with every mean innovation,
-/// format 9 with the plain mean innovation, law `[0, 0]`), to
+/// format 9 with the plain mean innovation, law `[0, 0]`; none with an
+/// outlier gate or a source check), to
 /// be calibrated again by the caller. `path` names the blob in errors.
 pub fn current_format(bytes: &[u8], path: &Path) -> Result<Current> {
     let header = postcard::from_bytes::<Header>(bytes).ok();
@@ -202,6 +232,7 @@ pub fn current_format(bytes: &[u8], path: &Path) -> Result<Current> {
             .current(TrustSpecV8::current),
         Some(8) => read::<BodyV8<TrustSpecV8>>(bytes, path, 8)?.current(TrustSpecV8::current),
         Some(9) => read::<BodyV8<TrustSpecV9>>(bytes, path, 9)?.current(TrustSpecV9::current),
+        Some(10) => read::<BodyV8<TrustSpecV10>>(bytes, path, 10)?.current(TrustSpecV10::current),
         // Current, or broken in a way the reader names.
         _ => {
             Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -339,7 +370,33 @@ mod tests {
         b.body.trust.max_nis = f32::MAX;
         b.body.trust.nis_law = [0.0; 2];
         b.body.trust.max_rate_mismatch = f32::MAX;
+        b.body.trust.max_step_nis = 0.0;
+        b.body.trust.min_samples_per_period = 0.0;
         blob_bytes(&b).unwrap()
+    }
+
+    /// The rig blob written back as format 10 (its trust section without
+    /// the outlier gate and the source check) upgrades to the rig blob
+    /// with neither, every other threshold kept, byte for byte.
+    #[test]
+    fn a_format_10_blob_upgrades_without_gate_or_source_check() {
+        let (path, shipped) = read_shipped("rig.kkf");
+        let blob = Blob::from_bytes(&shipped).unwrap();
+        let t = blob.body.trust;
+        let v10 = written_back(
+            &blob,
+            10,
+            TrustSpecV10 {
+                v8: v8_trust(&t),
+                max_nis: t.max_nis,
+                nis_law: t.nis_law,
+                max_rate_mismatch: t.max_rate_mismatch,
+            },
+        );
+        let mut want = Blob::from_bytes(&shipped).unwrap();
+        want.body.trust.max_step_nis = 0.0;
+        want.body.trust.min_samples_per_period = 0.0;
+        assert!(upgraded(&v10, &path, 10) == blob_bytes(&want).unwrap());
     }
 
     /// The rig blob written back as format 9 (its trust section without
@@ -363,6 +420,8 @@ mod tests {
         );
         let mut want = Blob::from_bytes(&shipped).unwrap();
         want.body.trust.nis_law = [0.0; 2];
+        want.body.trust.max_step_nis = 0.0;
+        want.body.trust.min_samples_per_period = 0.0;
         let (got, want) = (upgraded(&v9, &path, 9), blob_bytes(&want).unwrap());
         let first = got.iter().zip(&want).position(|(a, b)| a != b);
         assert!(

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use super::LabHeldOut;
 use crate::data::drawn::{DrawnSet, LabDraw, drawn_set};
 use crate::data::states_f32;
-use crate::physics::{Pendulum, Rig};
+use crate::physics::{Pendulum, Rig, RigPhysics};
 use crate::protocol::{THETA0, WINDOW};
 
 /// A held-out rollout: the true length and the raw measurements.
@@ -111,6 +111,20 @@ impl<'c> Sampling<'c> {
     }
 }
 
+impl Sampling<'_> {
+    /// The fewest samples a period the held-out rollouts over `lengths`
+    /// (m) carry: their sources' slowest rate at the shortest length.
+    pub(super) fn fewest_samples_per_period(&self, lengths: [f32; 2]) -> f64 {
+        let rate = match self.lab {
+            Some(lab) => lab.draw.rates.iter().copied().fold(f64::INFINITY, f64::min),
+            None => 1.0 / self.dt,
+        };
+        let shortest = f64::from(lengths[0].min(lengths[1]));
+        let period = std::f64::consts::TAU / self.rig.w2(self.g, shortest).sqrt();
+        period * rate
+    }
+}
+
 /// Whether the length estimate of `out` lies within the fraction
 /// `accurate` of the truth (what the swing check is set by and the check
 /// set's figures count).
@@ -139,6 +153,10 @@ pub(super) type NisSample = [f32; 3];
 pub(super) struct Extremes {
     pub(super) nis: Vec<NisSample>,
     pub(super) rate_off: Option<f32>,
+    /// The largest ratio of one update's normalised innovation to the
+    /// mean of those before it (the outlier gate's statistic; `None` where
+    /// never formed).
+    pub(super) step_ratio: Option<f32>,
 }
 
 /// [`checkpoints`], and the [`Extremes`] over the run.
@@ -150,6 +168,7 @@ pub(super) fn checkpoints_with_extremes(
     let mut at_window = None;
     let mut last = None;
     let mut ext = Extremes::default();
+    let mut mean_before: Option<f32> = None;
     let length = m.blob().body.params[0];
     let most = |a: Option<f32>, b: Option<f32>| match (a, b) {
         (Some(x), Some(y)) => Some(x.max(y)),
@@ -160,6 +179,10 @@ pub(super) fn checkpoints_with_extremes(
         if n + 1 == WINDOW {
             at_window = Some(out.clone());
         }
+        if let (Some(v), Some(mean)) = (out.innovation, mean_before.filter(|m| *m > 0.0)) {
+            ext.step_ratio = most(ext.step_ratio, Some(v / mean));
+        }
+        mean_before = out.nis;
         if n + 1 >= WINDOW {
             // The length at the blob's gravity, as the device reads it.
             if let Some(v) = out.nis {

@@ -126,6 +126,15 @@ pub struct CalibrateConfig {
     /// orders of magnitude across them.
     #[serde(default)]
     pub nis_law: bool,
+    /// Share of in-distribution rollouts whose largest ratio of one
+    /// measurement's normalised innovation to the mean before it may
+    /// pass the outlier gate (before the margin).
+    #[serde(default = "one_percent")]
+    pub step_nis_alpha: f64,
+    /// The outlier gate: this times the quantile at `1 - step_nis_alpha`
+    /// of each calibration rollout's largest ratio (0: no gate).
+    #[serde(default = "default_step_nis_margin")]
+    pub step_nis_margin: f64,
     /// Held-out rollouts drawn lab-like (as a blob trained on
     /// `data::drawn` sets was trained), instead of the protocol's.
     pub lab: Option<LabHeldOut>,
@@ -149,6 +158,10 @@ fn one_percent() -> f64 {
 
 fn default_rate_floor() -> f64 {
     0.1
+}
+
+fn default_step_nis_margin() -> f64 {
+    2.0
 }
 
 impl Default for CalibrateConfig {
@@ -176,6 +189,8 @@ impl Default for CalibrateConfig {
             nis_law: false,
             rate_alpha: one_percent(),
             rate_floor: default_rate_floor(),
+            step_nis_alpha: one_percent(),
+            step_nis_margin: default_step_nis_margin(),
             lab: None,
         }
     }
@@ -226,6 +241,18 @@ pub struct Calibration {
     /// The largest departure that passes: that quantile or the floor,
     /// whichever is larger.
     pub max_rate_mismatch: f32,
+    /// The calibration set's quantile at `1 - step_nis_alpha` of each
+    /// rollout's largest ratio of one measurement's normalised innovation
+    /// to the mean before it.
+    #[serde(default)]
+    pub step_nis_quantile: f32,
+    /// The outlier gate: that quantile times the margin.
+    #[serde(default)]
+    pub max_step_nis: f32,
+    /// The fewest samples a period the calibration's sources give (their
+    /// slowest rate at the shortest length): a coarser source is flagged.
+    #[serde(default)]
+    pub min_samples_per_period: f32,
     /// On the check set after the window, and after the long run.
     pub check: [CheckFigures; 2],
 }
@@ -280,6 +307,9 @@ impl Calibration {
             nis_law: trust.nis_law,
             rate_quantile: t.rate_quantile,
             max_rate_mismatch: trust.max_rate_mismatch,
+            step_nis_quantile: t.step_nis_quantile,
+            max_step_nis: trust.max_step_nis,
+            min_samples_per_period: trust.min_samples_per_period,
             check,
         }
     }
@@ -360,6 +390,8 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         max_nis: f32::MAX,
         nis_law: [0.0; 2],
         max_rate_mismatch: f32::MAX,
+        max_step_nis: 0.0,
+        min_samples_per_period: 0.0,
     }
 }
 

@@ -57,6 +57,9 @@ pub(super) struct Thresholds<'m> {
     pub(super) unevenness_quantile: f32,
     /// The quantile of the rate ratio's departure from 1.
     pub(super) rate_quantile: f32,
+    /// The quantile of each rollout's largest innovation of one
+    /// measurement.
+    pub(super) step_nis_quantile: f32,
 }
 
 /// Sets the thresholds on the calibration set, with `map` in place.
@@ -95,6 +98,8 @@ pub(super) fn thresholds<'m>(
     let unevenness_quantile = conformal(&mut r.uneven, 1.0 - cfg.unevenness_alpha) as f32;
     let (nis_law, max_nis) = consistency(&r.traces, cfg)?;
     let rate_quantile = conformal(&mut r.rate, 1.0 - cfg.rate_alpha) as f32;
+    let step_nis_quantile = conformal(&mut r.step_ratio, 1.0 - cfg.step_nis_alpha) as f32;
+    let fewest = setup.sampling.fewest_samples_per_period(spec.train_range);
     Ok(Thresholds {
         trust: TrustSpec {
             envelope: mapped.body.trust.envelope,
@@ -107,9 +112,12 @@ pub(super) fn thresholds<'m>(
             max_nis,
             nis_law,
             max_rate_mismatch: rate_quantile.max(cfg.rate_floor as f32),
+            max_step_nis: step_nis_quantile * cfg.step_nis_margin as f32,
+            min_samples_per_period: fewest as f32,
         },
         unevenness_quantile,
         rate_quantile,
+        step_nis_quantile,
     })
 }
 
@@ -151,6 +159,9 @@ struct Readings {
     traces: Vec<Vec<NisSample>>,
     /// The rate ratio's largest departure from 1 from the window on.
     rate: Vec<f64>,
+    /// The largest ratio of one update's innovation to the mean before
+    /// it (not formed: 0).
+    step_ratio: Vec<f64>,
 }
 
 impl Readings {
@@ -178,6 +189,7 @@ impl Readings {
             r.uneven.push(f64::from(b.unevenness.unwrap_or(0.0)));
             r.traces.push(ext.nis);
             r.rate.push(f64::from(ext.rate_off.unwrap_or(0.0)));
+            r.step_ratio.push(f64::from(ext.step_ratio.unwrap_or(0.0)));
             r.qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
             r.err_long.push(f64::from((b.coordinate[0] - truth).abs()));
             r.err_window.push((

@@ -9,7 +9,11 @@
 //! Per rollout, from one ChaCha8 stream: the length log-uniform over its
 //! range, the release angle log-uniform (small swings are as common as
 //! large ones), the effect's coefficient uniform over its range, the rate
-//! one of [`LabDraw::rates`], the noise uniform over [`LabDraw::noise`].
+//! one of [`LabDraw::rates`], the noise uniform over [`LabDraw::noise`],
+//! then what real rigs add ([`LabDraw::extras`]: an offset, drag and
+//! Coulomb friction beside the set's effect, from the same stream; a
+//! video's artefacts from a stream of their own, so that the noise-free
+//! twin, which has none, draws the same pendulums).
 
 use anyhow::{Context, Result};
 use rand::{Rng, SeedableRng};
@@ -17,8 +21,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::import::{self, ImportOptions};
-use super::lab::{Case, LabSpec, Stamps};
-use super::{Dataset, RolloutMeta, Sidecar};
+use super::lab::{Artefacts, Case, Extras, LabSpec, Stamps};
+use super::{Dataset, Rollout, RolloutMeta, Sidecar};
 use crate::physics::{EffectRange, Rig};
 
 /// How the recordings are taken (the rest of a set's settings are the
@@ -33,6 +37,9 @@ pub struct LabDraw {
     pub noise: [f64; 2],
     /// Quantisation step of the angle, rad (0.1 degree: a tracker's).
     pub quantum: f64,
+    /// What real rigs add (none by default, and then not written).
+    #[serde(default, skip_serializing_if = "Extras::is_none")]
+    pub extras: Extras,
 }
 
 impl Default for LabDraw {
@@ -44,6 +51,7 @@ impl Default for LabDraw {
             rates: vec![25.0, 30.0, 50.0, 60.0, 100.0],
             noise: [0.002, 0.01],
             quantum: 0.1f64.to_radians(),
+            extras: Extras::default(),
         }
     }
 }
@@ -54,10 +62,16 @@ impl LabDraw {
     /// the dynamics on, since a least squares whose regressors are noisy
     /// is biased towards slower, more damped dynamics, most for the
     /// smallest swings, where the noise is largest against the swing.
+    /// Nor a video's artefacts (the offset and the friction stay: the
+    /// same pendulums).
     pub fn noise_free(&self) -> LabDraw {
         LabDraw {
             noise: [0.0, 0.0],
             quantum: 1e-9,
+            extras: Extras {
+                artefacts: Artefacts::NONE,
+                ..self.extras
+            },
             ..self.clone()
         }
     }
@@ -118,7 +132,10 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
         s.draw.quantum.is_finite() && s.draw.quantum > 0.0,
         "a drawn set needs a positive quantisation step"
     );
+    s.draw.extras.check()?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut glitches = ChaCha8Rng::seed_from_u64(seed);
+    glitches.set_stream(1);
     let mut rollouts = Vec::with_capacity(s.draw.rollouts);
     let mut metas = Vec::with_capacity(s.draw.rollouts);
     let opts = ImportOptions {
@@ -133,7 +150,7 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
             .map(|e| e.at(rng.random_range(e.range[0]..=e.range[1])));
         let rate = s.draw.rates[rng.random_range(0..s.draw.rates.len())];
         let noise = rng.random_range(s.draw.noise[0]..=s.draw.noise[1]);
-        let spec = LabSpec {
+        let mut spec = LabSpec {
             case: effect
                 .as_ref()
                 .map_or(Case::Clean, |e| Case::of_dissipation(e.kind)),
@@ -150,27 +167,21 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
             effects: effect.iter().cloned().collect(),
             offset: 0.0,
             forcing: None,
+            artefacts: Artefacts::NONE,
         };
-        let rec = spec.record(&mut rng);
-        let mut r = import::to_rollout(&rec, id, &opts)
-            .with_context(|| format!("drawn rollout {id} ({length:.3} m, {theta0:.3} rad)"))?;
-        anyhow::ensure!(
-            r.xs.len() >= s.steps && super::unbroken(&r.t, s.dt) >= s.steps,
-            "drawn rollout {id}: {} steps imported of {}",
-            r.xs.len(),
-            s.steps
-        );
-        r.t.truncate(s.steps);
-        r.xs.truncate(s.steps);
-        rollouts.push(r);
+        s.draw.extras.draw_onto(&mut spec, &mut rng);
+        rollouts.push(unbroken_rollout(
+            &spec,
+            id,
+            s,
+            &opts,
+            [&mut rng, &mut glitches],
+        )?);
         metas.push(RolloutMeta {
             rollout: id,
             length,
             theta0,
-            effects: effect
-                .iter()
-                .map(|e| (e.name().to_string(), e.coefficient))
-                .collect(),
+            effects: truth(&spec),
         });
     }
     Ok(Dataset {
@@ -183,6 +194,63 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
             rollouts: metas,
         },
     })
+}
+
+/// Tries at a rollout's artefacts before a set with dropped frames gives up.
+const TRIES: usize = 20;
+
+/// `spec` recorded (its noise from `rng`, its artefacts from `glitches`)
+/// and imported as rollout `id` of `s`, its first `s.steps` unbroken: the
+/// artefacts are drawn again where a run of dropped frames left a gap
+/// the import does not bridge.
+fn unbroken_rollout(
+    spec: &LabSpec,
+    id: u32,
+    s: &DrawnSet<'_>,
+    opts: &ImportOptions,
+    [rng, glitches]: [&mut ChaCha8Rng; 2],
+) -> Result<Rollout> {
+    let sampled = spec.sample(rng);
+    let tries = if spec.artefacts.dropped > 0.0 {
+        TRIES
+    } else {
+        1
+    };
+    let mut imported = 0;
+    for _ in 0..tries {
+        let rec = spec
+            .artefacts
+            .apply(&sampled, spec.rate, spec.quantum, glitches);
+        let mut r = import::to_rollout(&rec, id, opts).with_context(|| {
+            format!(
+                "drawn rollout {id} ({:.3} m, {:.3} rad)",
+                spec.length, spec.theta0
+            )
+        })?;
+        if r.xs.len() >= s.steps && super::unbroken(&r.t, s.dt) >= s.steps {
+            r.t.truncate(s.steps);
+            r.xs.truncate(s.steps);
+            return Ok(r);
+        }
+        imported = r.xs.len();
+    }
+    anyhow::bail!(
+        "drawn rollout {id}: {imported} steps imported of {}",
+        s.steps
+    )
+}
+
+/// The undeclared effects of `spec` by name (a name twice: their sum) and
+/// its offset, where it has one.
+fn truth(spec: &LabSpec) -> std::collections::BTreeMap<String, f64> {
+    let mut out = std::collections::BTreeMap::new();
+    for e in &spec.effects {
+        *out.entry(e.name().to_string()).or_insert(0.0) += e.coefficient;
+    }
+    if spec.offset != 0.0 {
+        out.insert("offset".to_string(), spec.offset);
+    }
+    out
 }
 
 #[cfg(test)]
@@ -229,6 +297,47 @@ mod tests {
                 r.xs[0][0],
                 m.theta0
             );
+        }
+    }
+
+    /// Real rigs' extras: each rollout's truth names them, in their
+    /// ranges; dropped frames leave every rollout whole; the noise-free
+    /// twin draws the same pendulums.
+    #[test]
+    fn a_set_with_extras_names_them_and_its_twin_matches() {
+        use crate::data::lab::Artefacts;
+        let draw = LabDraw {
+            rollouts: 12,
+            rates: vec![25.0, 100.0],
+            extras: Extras {
+                artefacts: Artefacts {
+                    stamp_round: 0.01,
+                    dropped: 0.03,
+                    spikes: 0.01,
+                },
+                ..Extras::REAL_RIGS
+            },
+            ..LabDraw::default()
+        };
+        let twin = draw.noise_free();
+        let set = DrawnSet {
+            rig: Rig::Simple,
+            lengths: [0.1, 1.5],
+            theta0: [0.03, 1.5],
+            effect: None,
+            dt: 0.04,
+            steps: 256,
+            draw: &draw,
+        };
+        let a = drawn_set(5, "train", &set).unwrap();
+        let b = drawn_set(5, "train", &DrawnSet { draw: &twin, ..set }).unwrap();
+        assert_eq!(a.sidecar.rollouts, b.sidecar.rollouts);
+        for (r, m) in a.rollouts.iter().zip(&a.sidecar.rollouts) {
+            assert_eq!(r.xs.len(), 256);
+            let e = &m.effects;
+            assert!((0.004..=0.046).contains(&e["drag"]), "{e:?}");
+            assert!((0.0..=0.07).contains(&e["coulomb"]), "{e:?}");
+            assert!(e.get("offset").is_none_or(|o| o.abs() <= 0.1), "{e:?}");
         }
     }
 }

@@ -21,12 +21,23 @@
 //! The motion is integrated by RK4 at 0.5 ms; Coulomb friction sticks once
 //! the swing cannot overcome it (a body at rest stays at rest while
 //! `|w^2 sin(theta)|` is below the friction).
+//!
+//! What real rigs add, on request ([`SuiteOptions`], [`Extras`]): an angle
+//! offset, drag and Coulomb friction beside a case's own effects, other
+//! swings, rates and durations, and a video's [`Artefacts`] (stamps
+//! rounded, dropped frames, single-frame spikes). Left at their defaults,
+//! nothing more is drawn: a seed's suite is the same, bit for bit.
+
+mod artefacts;
 
 use std::f64::consts::PI;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
+pub use self::artefacts::{Artefacts, LONGEST_GAP, SPIKE};
+use super::drawn::log_uniform;
 use super::import::Recording;
 use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 
@@ -158,6 +169,8 @@ pub struct LabSpec {
     pub offset: f64,
     /// Forcing `a sin(omega t)`: `(a, omega)` in rad/s^2 and rad/s.
     pub forcing: Option<(f64, f64)>,
+    /// A video's artefacts ([`Artefacts::NONE`]: none).
+    pub artefacts: Artefacts,
 }
 
 impl LabSpec {
@@ -245,6 +258,7 @@ impl LabSpec {
             effects,
             offset,
             forcing,
+            artefacts: Artefacts::NONE,
         }
     }
 
@@ -308,8 +322,14 @@ impl LabSpec {
         out
     }
 
-    /// The recording, its noise drawn from `rng`.
+    /// The recording, its noise and then its artefacts drawn from `rng`.
     pub fn record(&self, rng: &mut ChaCha8Rng) -> Recording {
+        let rec = self.sample(rng);
+        self.artefacts.apply(&rec, self.rate, self.quantum, rng)
+    }
+
+    /// The recording without its artefacts, its noise drawn from `rng`.
+    pub fn sample(&self, rng: &mut ChaCha8Rng) -> Recording {
         let motion = self.motion();
         let at = |t: f64| {
             let k = ((t / H).floor() as usize).min(motion.len() - 2);
@@ -366,15 +386,208 @@ impl LabSpec {
     }
 }
 
+/// What real rigs add to a drawn recording (all 0: nothing, and nothing
+/// drawn): what [`Extras::draw_onto`] draws.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Extras {
+    /// An angle offset, rad, uniform over `[-offset, offset]` (a camera's
+    /// axes off vertical, an encoder's zero where it was switched on).
+    pub offset: f64,
+    /// Drag on the bob, 1/rad, uniform over `[lo, hi]` (`hi` 0: none).
+    pub drag: [f64; 2],
+    /// Coulomb friction at the pivot, rad/s^2, uniform over `[lo, hi]`
+    /// (`hi` 0: none).
+    pub coulomb: [f64; 2],
+    /// A video's artefacts.
+    pub artefacts: Artefacts,
+}
+
+impl Extras {
+    /// The sizes real rigs show: offsets within 0.1 rad either way, drag
+    /// of 0.004 to 0.046 1/rad and Coulomb friction up to 0.07 rad/s^2
+    /// (viscous damping of 0.002 to 0.04 1/s is a set's own effect); no
+    /// artefacts.
+    pub const REAL_RIGS: Extras = Extras {
+        offset: 0.1,
+        drag: [0.004, 0.046],
+        coulomb: [0.0, 0.07],
+        artefacts: Artefacts::NONE,
+    };
+
+    /// Whether there are none.
+    pub fn is_none(&self) -> bool {
+        *self == Extras::default()
+    }
+
+    /// Whether each lies in its range (an error names the first that does not).
+    pub fn check(&self) -> anyhow::Result<()> {
+        let range = |[lo, hi]: [f64; 2]| lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi;
+        anyhow::ensure!(
+            self.offset.is_finite() && self.offset >= 0.0,
+            "the offset must be 0 or a positive angle, rad"
+        );
+        anyhow::ensure!(
+            range(self.drag) && range(self.coulomb),
+            "drag and Coulomb friction need finite ranges 0 <= LO <= HI"
+        );
+        self.artefacts.check()
+    }
+
+    /// Draws them from `rng` onto `spec`: the offset added to its own,
+    /// drag and then Coulomb friction after its effects, the artefacts
+    /// set. Nothing is drawn for a part that is 0.
+    pub fn draw_onto(&self, spec: &mut LabSpec, rng: &mut ChaCha8Rng) {
+        if self.offset > 0.0 {
+            spec.offset += rng.random_range(-self.offset..=self.offset);
+        }
+        for (kind, [lo, hi]) in [
+            (EffectKind::Drag, self.drag),
+            (EffectKind::Coulomb, self.coulomb),
+        ] {
+            if hi > 0.0 {
+                spec.effects
+                    .push(Effect::new(kind, rng.random_range(lo..=hi)));
+            }
+        }
+        spec.artefacts = self.artefacts;
+    }
+}
+
+/// How a suite is drawn beyond its cases' own draws (the default: as
+/// they draw it, bit for bit). The overrides and the artefacts are drawn
+/// from a stream of their own: each case's pendulum and noise stay (but
+/// for a rate or duration drawn anew, which takes another count of noise
+/// draws, so that the later cases differ).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SuiteOptions {
+    /// Added to every recording (the case keeps its name).
+    pub extras: Extras,
+    /// Release angles, rad, log-uniform (`None`: the case's, 0.25 to 1.2).
+    pub swings: Option<[f64; 2]>,
+    /// Frame rates, Hz, one drawn per recording that is not an encoder's
+    /// (`None`: the case's, at least 12 samples a period; these are not
+    /// held to that, as a coarse video is not).
+    pub rates: Option<Vec<f64>>,
+    /// Seconds recorded, log-uniform (`None`: the case's, 30 to 300).
+    pub seconds: Option<[f64; 2]>,
+}
+
+impl SuiteOptions {
+    /// Whether each lies in its range (an error names the first that does not).
+    pub fn check(&self) -> anyhow::Result<()> {
+        let range = |r: Option<[f64; 2]>| {
+            r.is_none_or(|[lo, hi]| lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi)
+        };
+        anyhow::ensure!(
+            range(self.swings) && range(self.seconds),
+            "swings and durations need finite ranges 0 < LO <= HI"
+        );
+        anyhow::ensure!(
+            self.rates
+                .as_ref()
+                .is_none_or(|r| !r.is_empty() && r.iter().all(|v| v.is_finite() && *v > 0.0)),
+            "the rates must be positive"
+        );
+        self.extras.check()
+    }
+
+    /// Draws the overrides from `rng` onto `spec`.
+    fn draw_onto(&self, spec: &mut LabSpec, rng: &mut ChaCha8Rng) {
+        if let Some(r) = self.swings {
+            spec.theta0 = log_uniform(rng, r);
+        }
+        if let Some(rates) = self
+            .rates
+            .as_ref()
+            .filter(|_| spec.stamps != Stamps::PerCount)
+        {
+            spec.rate = rates[rng.random_range(0..rates.len())];
+        }
+        if let Some(r) = self.seconds {
+            spec.duration = log_uniform(rng, r);
+        }
+        self.extras.draw_onto(spec, rng);
+    }
+}
+
 /// The suite of one seed: one recording of every [`Case`].
 pub fn suite(seed: u64) -> Vec<(LabSpec, Recording)> {
+    suite_with(seed, &SuiteOptions::default())
+}
+
+/// [`suite`] drawn with `opts` (checked by [`SuiteOptions::check`]); its
+/// overrides and artefacts from the seed's stream 1.
+pub fn suite_with(seed: u64, opts: &SuiteOptions) -> Vec<(LabSpec, Recording)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut extra = ChaCha8Rng::seed_from_u64(seed);
+    extra.set_stream(1);
     Case::ALL
         .iter()
         .map(|&case| {
-            let spec = LabSpec::draw(case, &mut rng);
-            let rec = spec.record(&mut rng);
+            let mut spec = LabSpec::draw(case, &mut rng);
+            opts.draw_onto(&mut spec, &mut extra);
+            let rec = spec.sample(&mut rng);
+            let rec = spec
+                .artefacts
+                .apply(&rec, spec.rate, spec.quantum, &mut extra);
             (spec, rec)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without artefacts a recording is its sample, the stream left alike.
+    #[test]
+    fn a_recording_without_artefacts_is_its_sample() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let spec = LabSpec::draw(Case::ViscousDrag, &mut rng);
+        let (mut a, mut b) = (rng.clone(), rng);
+        assert_eq!(spec.record(&mut a), spec.sample(&mut b));
+        assert_eq!(a, b);
+    }
+
+    /// Real rigs' extras land on every case, in their ranges, its
+    /// pendulum kept; so do other rates and durations.
+    #[test]
+    fn the_extras_are_drawn_onto_every_case() {
+        let mut opts = SuiteOptions {
+            extras: Extras {
+                artefacts: Artefacts {
+                    stamp_round: 0.001,
+                    dropped: 0.01,
+                    spikes: 0.005,
+                },
+                ..Extras::REAL_RIGS
+            },
+            swings: Some([0.03, 1.5]),
+            ..SuiteOptions::default()
+        };
+        opts.check().unwrap();
+        let plain = suite(5);
+        for ((spec, rec), (base, _)) in suite_with(5, &opts).iter().zip(&plain) {
+            assert_eq!((spec.case, spec.length), (base.case, base.length));
+            assert!((spec.offset - base.offset).abs() <= 0.1);
+            let n = base.effects.len();
+            assert_eq!(spec.effects[..n], base.effects[..]);
+            let extra: Vec<_> = spec.effects[n..].iter().map(|e| e.kind).collect();
+            assert_eq!(extra, [EffectKind::Drag, EffectKind::Coulomb]);
+            assert!((0.03..=1.5).contains(&spec.theta0));
+            assert!(rec.t.windows(2).all(|w| w[1] > w[0]));
+            assert!(
+                rec.t
+                    .iter()
+                    .all(|t| (t * 1e3 - (t * 1e3).round()).abs() < 1e-6)
+            );
+        }
+        opts.rates = Some(vec![5.0, 240.0]);
+        opts.seconds = Some([20.0, 40.0]);
+        for (spec, _) in suite_with(5, &opts) {
+            assert!((20.0..=40.0).contains(&spec.duration));
+            assert!(spec.stamps == Stamps::PerCount || [5.0, 240.0].contains(&spec.rate));
+        }
+    }
 }

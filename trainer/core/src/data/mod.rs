@@ -3,7 +3,8 @@
 //!
 //! Files come in two kinds, each with one reader:
 //! - the project's CSV `rollout,t,theta,theta_dot` with a JSON sidecar of
-//!   the truth ([`project_csv`]);
+//!   the truth, or of how an imported recording was sampled
+//!   ([`project_csv`]);
 //! - a user's recording in its own layout ([`import`]), which becomes a
 //!   [`Dataset`] on the model's time grid.
 //!
@@ -25,7 +26,9 @@ pub mod table;
 pub use generate::{
     Physics, test_set, test_set_with, training_set, training_set_with, uniform_lengths,
 };
-pub use project_csv::{CSV_HEADER, read, sidecar_path, to_csv, write};
+pub use project_csv::{
+    CSV_HEADER, read, read_sources, sidecar_path, to_csv, write, write_imported,
+};
 pub use table::CsvError;
 
 /// One rollout's ground truth, as the sidecar stores it.
@@ -40,6 +43,23 @@ pub struct RolloutMeta {
     /// Undeclared effects present, name -> coefficient.
     #[serde(default)]
     pub effects: BTreeMap<String, f64>,
+}
+
+/// How one imported rollout's recording was sampled before the import
+/// resampled it (the sidecar's `sources`, [`project_csv::write_imported`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceMeta {
+    /// Id as in the CSV's `rollout` column.
+    pub rollout: u32,
+    /// Median interval between the recording's time stamps, s.
+    pub median_interval: f64,
+    /// Largest interval between them, s.
+    pub largest_gap: f64,
+    /// Whether some sample at `--dt` lies between the source's stamps
+    /// (interpolated, not measured there).
+    pub interpolated: bool,
+    /// Samples dropped as single-frame glitches ([`import::glitches`]).
+    pub glitches: usize,
 }
 
 /// The JSON sidecar of a CSV.

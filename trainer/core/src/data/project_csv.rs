@@ -1,10 +1,11 @@
 //! The project's CSV, `rollout,t,theta,theta_dot` (simulated and imported
-//! data alike), and its JSON sidecar of each rollout's truth.
+//! data alike), and its JSON sidecar of each rollout's truth (and, for an
+//! import, of how each recording was sampled: `sources`).
 
 use std::path::{Path, PathBuf};
 
 use super::table::{CsvError, Table};
-use super::{Dataset, Rollout, Sidecar};
+use super::{Dataset, Rollout, Sidecar, SourceMeta};
 use crate::io::write_atomic;
 use crate::protocol::{DT, ROLLOUT_LEN};
 
@@ -31,14 +32,60 @@ pub fn sidecar_path(csv: &Path) -> PathBuf {
 
 /// Writes `NAME.csv` and `NAME.json` in `dir`, atomically each.
 pub fn write(ds: &Dataset, dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
+    write_imported(ds, &[], dir, name)
+}
+
+/// A sidecar with how each imported recording was sampled (none: the
+/// sidecar as it is).
+#[derive(serde::Serialize)]
+struct WithSources<'a> {
+    #[serde(flatten)]
+    sidecar: &'a Sidecar,
+    #[serde(skip_serializing_if = "<[SourceMeta]>::is_empty")]
+    sources: &'a [SourceMeta],
+}
+
+/// [`write`], the sidecar holding `sources` too (as [`read_sources`]
+/// reads them).
+pub fn write_imported(
+    ds: &Dataset,
+    sources: &[SourceMeta],
+    dir: &Path,
+    name: &str,
+) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(dir)?;
     let csv = dir.join(format!("{name}.csv"));
     write_atomic(&csv, to_csv(ds).as_bytes())?;
+    let sidecar = WithSources {
+        sidecar: &ds.sidecar,
+        sources,
+    };
     write_atomic(
         &sidecar_path(&csv),
-        serde_json::to_string_pretty(&ds.sidecar)?.as_bytes(),
+        serde_json::to_string_pretty(&sidecar)?.as_bytes(),
     )?;
     Ok(csv)
+}
+
+/// What [`read_sources`] reads of a sidecar.
+#[derive(serde::Deserialize)]
+struct SourcesOnly {
+    #[serde(default)]
+    sources: Vec<SourceMeta>,
+}
+
+/// How each rollout of the CSV at `path` was sampled before its import,
+/// as its sidecar records (none without a sidecar, or from a sidecar
+/// written before the import recorded it).
+pub fn read_sources(path: &Path) -> anyhow::Result<Vec<SourceMeta>> {
+    let sc = sidecar_path(path);
+    if !sc.exists() {
+        return Ok(Vec::new());
+    }
+    let s = std::fs::read_to_string(&sc)?;
+    let only: SourcesOnly =
+        serde_json::from_str(&s).map_err(|e| anyhow::anyhow!("{}: {e}", sc.display()))?;
+    Ok(only.sources)
 }
 
 /// Parses the project's CSV from its [`Table`]. Rows of one rollout must be
@@ -147,6 +194,30 @@ mod tests {
         assert_eq!(back.len(), 10);
         // f64 Display is the shortest string that parses back to the same bits.
         assert_eq!(back[3].xs, ds.rollouts[3].xs);
+    }
+
+    #[test]
+    fn an_imports_sources_round_trip_and_other_sidecars_stay_as_they_were() {
+        let dir = std::env::temp_dir().join(format!("sources-{}", std::process::id()));
+        let ds = test_set(1, &[2.0], &[]);
+        // Without sources, the sidecar as it is, byte for byte.
+        let csv = write(&ds, &dir, "plain").unwrap();
+        let text = std::fs::read_to_string(sidecar_path(&csv)).unwrap();
+        assert_eq!(text, serde_json::to_string_pretty(&ds.sidecar).unwrap());
+        // A sidecar without them (as written before) reads none.
+        assert!(read_sources(&csv).unwrap().is_empty());
+        assert!(read_sources(&dir.join("absent.csv")).unwrap().is_empty());
+        let sources = [SourceMeta {
+            rollout: 3,
+            median_interval: 0.083,
+            largest_gap: 0.25,
+            interpolated: true,
+            glitches: 2,
+        }];
+        let csv = write_imported(&ds, &sources, &dir, "imported").unwrap();
+        assert_eq!(read_sources(&csv).unwrap(), sources);
+        assert_eq!(read(&csv, 2).unwrap().sidecar.set, ds.sidecar.set);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -319,6 +319,11 @@ mod tests {
             swing: 0.5,
             unevenness: None,
             held: false,
+            offset: None,
+            offset_std: None,
+            innovation: None,
+            outlier: false,
+            outliers: 0,
         }
     }
 

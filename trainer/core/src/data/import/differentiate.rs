@@ -162,7 +162,7 @@ pub fn differentiate_uneven(t: &[f64], theta: &[f64], half: f64) -> (Vec<f64>, V
 /// for `k` in `a..=b`: its value and slope (per second) at `time(i)`; the
 /// line where fewer than three distinct times, `(theta[i], 0)` where not
 /// even that.
-fn quadratic_at(
+pub(super) fn quadratic_at(
     time: impl Fn(usize) -> f64,
     theta: &[f64],
     a: usize,

@@ -14,6 +14,11 @@ pub(super) fn median_step(t: &[f64]) -> f64 {
     d.get(d.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// The largest step between time stamps (0 with fewer than two).
+pub(super) fn largest_step(t: &[f64]) -> f64 {
+    t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max)
+}
+
 /// The parts of `rec` between its gaps (see
 /// [`to_rollout`](super::to_rollout)), each of 3 samples or more (shorter
 /// ones dropped), `step` being the median step and `dt` the model's
@@ -49,33 +54,46 @@ pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<R
     Ok(parts)
 }
 
-/// A part of a recording between gaps: its time stamps, and the angle
-/// (smoothed where the rate is derived) and the rate at them.
-pub(super) struct Part<'a> {
+/// A part of a recording between gaps: its time stamps (glitches left
+/// out), and the angle (smoothed where the rate is derived) and the rate
+/// at them.
+pub(super) struct Part {
     /// Times, s, increasing.
-    pub(super) t: &'a [f64],
+    pub(super) t: Vec<f64>,
     /// Angle, rad.
     pub(super) theta: Vec<f64>,
     /// Rate, rad/s.
     pub(super) rate: Vec<f64>,
 }
 
+/// The parts resampled on the model's grid.
+pub(super) struct Grid {
+    /// The grid's times from 0, s.
+    pub(super) t: Vec<f64>,
+    /// `(theta, theta_dot)` at each.
+    pub(super) xs: Vec<[f64; 2]>,
+    /// Whether some grid point lies between the parts' stamps (within a
+    /// thousandth of `dt` of none).
+    pub(super) interpolated: bool,
+}
+
 /// The parts trimmed and resampled on the one grid `first + start + k dt`
 /// (`first` and `last` the recording's first and last time stamps, the
-/// options' `start`, `duration` and `dt`): the grid's times from 0 and
-/// `(theta, theta_dot)` at each, the grid points inside a gap left out;
-/// an error when nothing is left after trimming or fewer than 2 samples.
+/// options' `start`, `duration` and `dt`), the grid points inside a gap
+/// left out; an error when nothing is left after trimming or fewer than
+/// 2 samples.
 pub(super) fn onto_grid(
     parts: &[Part],
     (first, last): (f64, f64),
     opts: &ImportOptions,
-) -> Result<(Vec<f64>, Vec<[f64; 2]>)> {
+) -> Result<Grid> {
     let t0 = first + opts.start;
     let end = opts.duration.map_or(last, |d| last.min(t0 + d));
     anyhow::ensure!(end > t0, "nothing left after trimming {} s", opts.start);
     let n = ((end - t0) / opts.dt + 1e-9).floor() as usize + 1;
     let mut t = Vec::with_capacity(n);
     let mut xs = Vec::with_capacity(n);
+    let mut interpolated = false;
     for k in 0..n {
         let at = t0 + k as f64 * opts.dt;
         // The part this grid point lies in (none: it is inside a gap).
@@ -86,14 +104,28 @@ pub(super) fn onto_grid(
             continue;
         };
         t.push(k as f64 * opts.dt);
-        xs.push([interp(p.t, &p.theta, at), interp(p.t, &p.rate, at)]);
+        xs.push([interp(&p.t, &p.theta, at), interp(&p.t, &p.rate, at)]);
+        interpolated |= !on_stamp(&p.t, at, 1e-3 * opts.dt);
     }
     anyhow::ensure!(
         xs.len() >= 2,
         "fewer than 2 samples at the model's interval {} s after trimming",
         opts.dt
     );
-    Ok((t, xs))
+    Ok(Grid {
+        t,
+        xs,
+        interpolated,
+    })
+}
+
+/// Whether `at` lies within `tol` of one of the stamps `t` (increasing).
+fn on_stamp(t: &[f64], at: f64, tol: f64) -> bool {
+    let k = t.partition_point(|&x| x < at);
+    [k.wrapping_sub(1), k]
+        .iter()
+        .filter_map(|&j| t.get(j))
+        .any(|x| (x - at).abs() <= tol)
 }
 
 /// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).

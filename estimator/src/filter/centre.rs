@@ -1,0 +1,274 @@
+//! The angle's zero: a constant offset of the measured angle from the
+//! hanging direction (a camera's axes, an encoder's start), found from
+//! the swing's turning points and subtracted before the encoder.
+//!
+//! A half swing runs between two sign changes of the measured rate (with
+//! hysteresis: the rate must pass a quarter of the last half swing's
+//! largest, and the half swing hold three measurements); a half swing
+//! that lasts half again as long as the one before, or two thirds as
+//! long, or a step without a measurement, starts the chain of turning
+//! points again (a turn may have been missed). Its extreme
+//! angle, refined by the parabola through it and its two neighbours (a
+//! sample lies up to half an interval from the true turn), is a turning
+//! point `T`. Three consecutive turning points about
+//! the offset `c` with amplitudes `A1, A2, A3` give
+//! `(T1 + 2 T2 + T3) / 4 = c + (A1 - 2 A2 + A3) / 4`, and for a swing
+//! whose amplitude decays smoothly (viscous, drag or Coulomb) `A2` is the
+//! mean of its neighbours to first order: `c`. A tracking noise that
+//! lifts each maximum and lowers each minimum alike cancels too. The
+//! offset is the mean over every such triple; its standard deviation the
+//! triples' spread over the square root of their number, times
+//! `sqrt(2)` (consecutive triples share two turning points).
+//!
+//! The filter is fed `theta - c`, `c` the mean so far, once
+//! [`MIN_TRIPLES`] triples give it three standard deviations from zero
+//! and not below [`OFFSET_FLOOR`]: below it the turning points' own
+//! error (the parabola's on a wide swing, the noise's) is as large, and
+//! it moves neither the length nor the unevenness at the smallest trusted
+//! swing by more than the noise does (a clean swing is fed as it is).
+//! When it first is, the estimator forgets what it learned about the
+//! parameters from the uncorrected angles (`Estimator::reopen_params`).
+
+/// The share of the last half swing's largest rate that the rate must
+/// pass the other way to end a half swing.
+const HYSTERESIS: f32 = 0.25;
+/// Measurements a half swing holds at least.
+const MIN_HALF: u16 = 3;
+/// Triples read before an offset is subtracted.
+const MIN_TRIPLES: u32 = 2;
+/// The smallest offset subtracted, rad (0.3 degrees; real rigs' are
+/// 0.01-0.06).
+const OFFSET_FLOOR: f32 = 5e-3;
+/// The smallest swing (half the range between turning points, rad) a
+/// triple is read from: below it the tracking noise dominates.
+const MIN_SWING: f32 = 0.005;
+
+/// The turning points so far and the offset they give.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Centre {
+    /// `1` while the rate is positive, `-1` while negative, `0` before.
+    phase: i8,
+    /// The extreme angle of the half swing so far, the measurement before
+    /// it and the one after it (NaN until there is one).
+    extreme: f32,
+    before: f32,
+    after: f32,
+    /// The last measured angle.
+    last: f32,
+    /// Its largest `|rate|`.
+    peak: f32,
+    /// The largest `|rate|` of the last whole half swing.
+    last_peak: f32,
+    /// Measurements in the half swing so far, and in the last whole one.
+    len: u16,
+    last_len: u16,
+    /// The last two turning points, the older first.
+    turns: [f32; 2],
+    /// Turning points so far (at most 2 counted).
+    n_turns: u8,
+    /// Triples read, their mean and squared deviation (Welford).
+    n: u32,
+    mean: f32,
+    m2: f32,
+    /// The offset subtracted now.
+    applied: f32,
+}
+
+impl Centre {
+    /// The measurement with the offset subtracted from its angle.
+    pub(crate) fn centred(&self, theta: f32, rate: f32) -> [f32; 2] {
+        [theta - self.applied, rate]
+    }
+
+    /// Records one measured angle and rate.
+    pub(crate) fn push(&mut self, theta: f32, rate: f32) {
+        let r = libm::fabsf(rate);
+        let turned = match self.phase {
+            0 => {
+                self.start(theta, rate, r);
+                false
+            }
+            p => {
+                let h = HYSTERESIS * self.last_peak.max(self.peak);
+                let back = f32::from(p) * rate < -h;
+                if back && self.len >= MIN_HALF {
+                    true
+                } else {
+                    self.extend(theta, r);
+                    false
+                }
+            }
+        };
+        if turned {
+            let (len, last) = (f32::from(self.len), f32::from(self.last_len));
+            if last > 0.0 && (len > 1.5 * last || 1.5 * len < last) {
+                self.n_turns = 0;
+            }
+            self.last_len = self.len;
+            self.turn(self.refined());
+            self.phase = -self.phase;
+            self.set_extreme(theta);
+            self.last_peak = self.peak;
+            self.peak = r;
+            self.len = 1;
+        }
+        self.last = theta;
+    }
+
+    /// A step without a measurement: the half swing and the chain of
+    /// turning points start again (the offset found so far is kept).
+    pub(crate) fn gap(&mut self) {
+        self.phase = 0;
+        self.n_turns = 0;
+        self.last_len = 0;
+        self.last_peak = 0.0;
+    }
+
+    /// The first measurement with a rate: its sign starts the half swing.
+    fn start(&mut self, theta: f32, rate: f32, r: f32) {
+        if rate != 0.0 {
+            self.phase = if rate > 0.0 { 1 } else { -1 };
+            self.set_extreme(theta);
+            self.peak = r;
+            self.len = 1;
+        }
+    }
+
+    /// `theta` as the half swing's extreme so far.
+    fn set_extreme(&mut self, theta: f32) {
+        self.before = self.last;
+        self.extreme = theta;
+        self.after = f32::NAN;
+    }
+
+    /// One more measurement of the half swing.
+    fn extend(&mut self, theta: f32, r: f32) {
+        let beyond = if self.phase > 0 {
+            theta > self.extreme
+        } else {
+            theta < self.extreme
+        };
+        if beyond {
+            self.set_extreme(theta);
+        } else if self.after.is_nan() {
+            self.after = theta;
+        }
+        self.peak = self.peak.max(r);
+        self.len = self.len.saturating_add(1);
+    }
+
+    /// The extreme, moved to the vertex of the parabola through it and its
+    /// neighbours (left as it is where they do not bracket it).
+    fn refined(&self) -> f32 {
+        let (a, b, c) = (self.before, self.extreme, self.after);
+        let curvature = a - 2.0 * b + c;
+        let opens_right_way = f32::from(self.phase) * curvature < 0.0;
+        if !(a.is_finite() && c.is_finite() && opens_right_way) {
+            return b;
+        }
+        let vertex = b - (a - c) * (a - c) / (8.0 * curvature);
+        // The vertex lies within one interval of the extreme sample.
+        if libm::fabsf(a - c) <= libm::fabsf(2.0 * curvature) {
+            vertex
+        } else {
+            b
+        }
+    }
+
+    /// A turning point `t`: with the two before it, a triple.
+    fn turn(&mut self, t: f32) {
+        let [t1, t2] = self.turns;
+        if self.n_turns >= 2 {
+            let (a, b) = (libm::fabsf(t1 - t2), libm::fabsf(t - t2));
+            // Both half swings alike (within a factor 2) and wider than
+            // the noise: a spurious turn at the start is left out.
+            if a.min(b) >= 2.0 * MIN_SWING && a.min(b) >= 0.5 * a.max(b) {
+                self.add(0.25 * (t1 + 2.0 * t2 + t));
+            }
+        }
+        self.turns = [t2, t];
+        self.n_turns = self.n_turns.saturating_add(1).min(2);
+    }
+
+    /// A triple's offset `c`: the mean, and what is subtracted, move.
+    fn add(&mut self, c: f32) {
+        self.n = self.n.saturating_add(1);
+        let d = c - self.mean;
+        self.mean += d / self.n as f32;
+        self.m2 += d * (c - self.mean);
+        self.applied = match self.offset() {
+            (Some(c), Some(std)) if self.n >= MIN_TRIPLES && self.significant(c, std) => c,
+            _ => 0.0,
+        };
+    }
+
+    /// Whether an offset is being subtracted.
+    pub(crate) fn subtracting(&self) -> bool {
+        self.applied != 0.0
+    }
+
+    /// Whether the offset `c` with the standard deviation `std` is one to
+    /// subtract: at least [`OFFSET_FLOOR`] and three deviations from 0.
+    fn significant(&self, c: f32, std: f32) -> bool {
+        let c = libm::fabsf(c);
+        c >= OFFSET_FLOOR && c >= 3.0 * std
+    }
+
+    /// The offset and its standard deviation; `None` before a triple (the
+    /// deviation before two).
+    pub(crate) fn offset(&self) -> (Option<f32>, Option<f32>) {
+        match self.n {
+            0 => (None, None),
+            1 => (Some(self.mean), None),
+            n => {
+                let var = self.m2.max(0.0) / (n - 1) as f32;
+                (Some(self.mean), Some(libm::sqrtf(2.0 * var / n as f32)))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// A swing about `c`, its amplitude decaying linearly (Coulomb-like),
+    /// sampled 23.7 times a period: the offset is found to
+    /// within 1e-3 rad, and what the filter is fed comes to be centred.
+    #[test]
+    fn a_decaying_swing_about_an_offset_gives_the_offset() {
+        let c = 0.06f32;
+        let mut centre = Centre::default();
+        let mut fed = [0.0f32; 2];
+        for k in 0..2000 {
+            let t = k as f32 / 23.7;
+            let a = (0.5 - 0.002 * t).max(0.05);
+            let w = core::f32::consts::TAU;
+            let (theta, rate) = (c + a * libm::cosf(w * t), -a * w * libm::sinf(w * t));
+            fed = centre.centred(theta, rate);
+            centre.push(theta, rate);
+        }
+        let (offset, std) = centre.offset();
+        let (offset, std) = (offset.unwrap(), std.unwrap());
+        assert!((offset - c).abs() < 1e-3, "{offset}");
+        assert!(std < 1e-3, "{std}");
+        // Fed centred: the last measurement less the offset.
+        let t = 1999.0 / 23.7;
+        let a_end = 0.5 - 0.002 * t;
+        assert!((fed[0] - a_end * libm::cosf(core::f32::consts::TAU * t)).abs() < 2e-3);
+    }
+
+    /// A swing without offset gives 0, and nothing before a triple.
+    #[test]
+    fn no_offset_reads_zero_and_nothing_is_known_before_three_turns() {
+        let mut centre = Centre::default();
+        assert_eq!(centre.offset(), (None, None));
+        for k in 0..500 {
+            let t = k as f32 * 0.04;
+            centre.push(0.3 * libm::cosf(3.0 * t), -0.9 * libm::sinf(3.0 * t));
+        }
+        let offset = centre.offset().0.unwrap();
+        assert!(offset.abs() < 1e-3, "{offset}");
+    }
+}
