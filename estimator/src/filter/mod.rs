@@ -68,6 +68,7 @@ mod centre;
 mod full;
 mod kernels;
 mod output;
+mod unobserved;
 mod scheduled;
 mod two_stage;
 
@@ -153,16 +154,6 @@ pub struct Estimator<'m> {
     /// (a burn-in again after the parameters were reopened).
     burn_until: u32,
 }
-
-/// How many times the parameters' variances widen when an offset is
-/// first subtracted: the estimate may move by four of its standard
-/// deviations (wider, and a bilinear model's `F(q)` can be driven off its
-/// trained square before the swings pull it back).
-const REOPEN: f32 = 16.0;
-
-/// Measurements in a row refused as outliers at most: the next is taken
-/// (a knock, not a tracker's glitch, moves every measurement after it).
-const MAX_OUTLIER_RUN: u8 = 3;
 
 impl<'m> Estimator<'m> {
     /// A filter that has seen nothing yet; it uses the blob's gain schedule
@@ -426,155 +417,6 @@ impl<'m> Estimator<'m> {
             if !was && self.centre.subtracting() {
                 self.reopen_params();
             }
-        }
-        Ok(out)
-    }
-
-    /// Advances the filter one model step without a measurement (a sample
-    /// lost, or a gap in the time stamps): `g = F g`, `P = F P F^T + Q`.
-    ///
-    /// The parameters keep their estimate and their uncertainty grows by
-    /// `Q`; nothing is observed, so the corrections (sigma) and the
-    /// envelope window are left as they were. The precomputed gains are
-    /// for an unbroken run, so the first prediction rebuilds `P` (on the
-    /// schedule by running the recursion from the prior, about 15,300
-    /// multiply-adds per update so far; after it from the two-stage form)
-    /// and every later update runs the whole recursion.
-    ///
-    /// # Errors
-    ///
-    /// [`Error::FilterNotStarted`] before the first measurement; on any
-    /// error the state is unchanged.
-    ///
-    /// # Examples
-    ///
-    /// A recording with 0.2 s missing (5 steps of 0.04 s) is bridged:
-    ///
-    /// ```
-    /// use estimator::blob::Aligned;
-    /// use estimator::{Error, Estimator, Model};
-    ///
-    /// static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
-    /// let model = Model::from_bytes(&RIG.0)?;
-    /// let mut est = Estimator::new(&model).with_gravity(9.81)?;
-    /// assert_eq!(est.predict().unwrap_err(), Error::FilterNotStarted);
-    ///
-    /// est.step(&[0.3, 0.0])?;
-    /// let before = est.step(&[0.29, -0.1])?;
-    /// let after = est.skip(5)?;
-    /// assert_eq!(after.t, before.t + 5);
-    /// assert!(after.coordinate_std[0] >= before.coordinate_std[0]); // nothing learned
-    /// # Ok::<(), estimator::Error>(())
-    /// ```
-    pub fn predict(&mut self) -> Result<StepOutput, Error> {
-        if !self.started {
-            return Err(Error::FilterNotStarted);
-        }
-        self.advance_unobserved()?;
-        self.outlier = false;
-        self.innovation = None;
-        Ok(self.output([0.0; PARAM_DIM]))
-    }
-
-    /// One model step without a measurement: the state of
-    /// [`Estimator::predict`], before its report.
-    fn advance_unobserved(&mut self) -> Result<(), Error> {
-        let p = self.current_covariance()?;
-        let (m, p) = self.predict_only(&p)?;
-        self.mean = m;
-        self.p = p;
-        self.param_std = sqrt_diag(&p, LATENT_DIM);
-        self.bridged = true;
-        self.kinematics.gap();
-        self.centre.gap();
-        self.t = self.t.saturating_add(1);
-        Ok(())
-    }
-
-    /// The parameters' variances widened [`REOPEN`] times (at most to the
-    /// prior) and uncorrelated with the latent: what the filter learned of them from measurements an
-    /// offset had moved is forgotten once the offset is subtracted (the
-    /// whole recursion runs from then on); the verdict's corrections and
-    /// innovations count again after a new burn-in, and the swings, the
-    /// envelope and the held estimate are read afresh.
-    #[cold]
-    #[inline(never)]
-    fn reopen_params(&mut self) {
-        // Only the schedule's replay can fail: then the parameters stay.
-        let Ok(mut p) = self.current_covariance() else {
-            return;
-        };
-        let prior = &self.model.blob().body.filter.prior_var;
-        for (i, row) in p.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                if i >= LATENT_DIM || j >= LATENT_DIM {
-                    *v = if i == j {
-                        let widened = REOPEN * *v;
-                        prior.get(i).map_or(widened, |p| widened.min(*p))
-                    } else {
-                        0.0
-                    };
-                }
-            }
-        }
-        self.p = p;
-        self.bridged = true;
-        // The verdict starts again: a burn-in, then the corrections.
-        let burn_in = u32::from(self.model.blob().body.filter.burn_in);
-        self.burn_until = self.t.saturating_add(burn_in);
-        self.spread = Spread::default();
-        self.consistency = Consistency::default();
-        // What the states and the swings showed the forgotten estimate,
-        // and the estimate held from them.
-        self.window = EnvelopeWindow::default();
-        self.worst_off = 0;
-        self.swing = SwingWindow::default();
-        self.held = None;
-        self.kinematics.gap();
-    }
-
-    /// Whether a measurement whose normalised innovation squared is `nis`
-    /// is refused: more than the blob's bound times the mean of those
-    /// before it (a glitch stands out from its neighbours; a model that
-    /// fits every measurement badly is the consistency check's to flag),
-    /// and not the [`MAX_OUTLIER_RUN`]-th in a row.
-    fn is_outlier(&self, nis: f32) -> bool {
-        let bound = self.model.blob().body.trust.max_step_nis;
-        bound > 0.0
-            && self.outlier_run < MAX_OUTLIER_RUN
-            && self
-                .consistency
-                .mean()
-                .is_some_and(|mean| mean > 0.0 && nis > bound * mean)
-    }
-
-    /// Refuses this measurement as an outlier: the filter predicts across
-    /// it as across a lost sample, and counts it.
-    #[cold]
-    #[inline(never)]
-    fn refuse(&mut self, nis: f32) -> Result<StepOutput, Error> {
-        self.advance_unobserved()?;
-        self.outliers = self.outliers.saturating_add(1);
-        self.outlier_run = self.outlier_run.saturating_add(1);
-        self.outlier = true;
-        self.innovation = Some(nis);
-        Ok(self.output([0.0; PARAM_DIM]))
-    }
-
-    /// `n` steps of [`Estimator::predict`]; `n = 0` changes nothing and
-    /// reports the current state.
-    ///
-    /// # Errors
-    ///
-    /// As [`Estimator::predict`]; it stops at the first error, with the
-    /// steps before it kept.
-    pub fn skip(&mut self, n: u32) -> Result<StepOutput, Error> {
-        if !self.started {
-            return Err(Error::FilterNotStarted);
-        }
-        let mut out = self.output([0.0; PARAM_DIM]);
-        for _ in 0..n {
-            out = self.predict()?;
         }
         Ok(out)
     }

@@ -1,12 +1,13 @@
 //! `koopman estimate`: the on-device estimator over each rollout of a CSV.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use estimator::Estimator;
-use trainer_core::data::{self, SourceMeta};
+use estimator::blob::Body;
+use estimator::{Estimator, StepOutput};
+use trainer_core::data::{self, Rollout, SourceMeta};
 use trainer_core::track::figure::{self, Trace};
-use trainer_core::track::track_each;
+use trainer_core::track::{Tracked, track_each};
 
 /// Runs the on-device estimator over each rollout of a CSV.
 #[derive(Debug, clap::Args)]
@@ -55,52 +56,17 @@ pub fn run(a: Args) -> Result<()> {
     };
     data::check_interval_with(&ds, dt, true)
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
-    let body = &model.blob().body;
-    let names: Vec<&str> = body.params.iter().map(|p| p.name).collect();
-    let rig = body.rig;
     if let Some(dir) = &a.plot {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("{}: cannot create: {e}", dir.display()))?;
     }
-    // The effect's columns, where the blob declares one.
-    let effect_label = body.params[1]
-        .declared
-        .then(|| format!("{} ({})", names[1], effect_unit(names[1])));
+    let report = Report::of(&a, model.blob().body, !sources.is_empty());
     if !a.json {
-        let effect_head = effect_label
-            .as_ref()
-            .map_or(String::new(), |l| format!("{l:>18}  {:>10}  ", "std"));
-        let glitch_head = if sources.is_empty() {
-            String::new()
-        } else {
-            format!("{:>8}  ", "glitches")
-        };
-        super::say(&format!(
-            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  {:>12}  {:>8}  {:>8}  {glitch_head}trust",
-            rig.length_label(),
-            "std",
-            "sigma",
-            "offset (rad)",
-            "std",
-            "outliers"
-        ))?;
+        report.header()?;
     }
     for r in &ds.rollouts {
         let source = sources.iter().find(|s| s.rollout == r.id);
-        let mut est = match source {
-            Some(s) => fresh
-                .clone()
-                .with_source_interval(s.median_interval as f32)
-                .map_err(|e| {
-                    anyhow::anyhow!(
-                        "{}: rollout {}: source interval {} s: {e}",
-                        a.data.display(),
-                        r.id,
-                        s.median_interval
-                    )
-                })?,
-            None => fresh.clone(),
-        };
+        let mut est = report.estimator(&fresh, r.id, source)?;
         let mut steps = Vec::new();
         let tracked = track_each(&mut est, r, dt, a.steps, |t, o| {
             if a.plot.is_some() {
@@ -109,90 +75,181 @@ pub fn run(a: Args) -> Result<()> {
         })
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
         if let Some(dir) = &a.plot {
-            let effect = body.params[1]
-                .declared
-                .then(|| (names[1], effect_unit(names[1])));
-            let path = dir.join(format!("rollout-{}.png", r.id));
-            let g_note = match a.g {
-                Some(g) => format!("g = {g} declared"),
-                None => format!("g not declared: read at the blob's {}", body.g),
-            };
-            figure::estimate(
-                &path,
-                &Trace {
-                    title: format!(
-                        "{} rollout {} with {} ({g_note})",
-                        a.data.display(),
-                        r.id,
-                        a.weights.display()
-                    ),
-                    length_label: rig.length_label().to_string(),
-                    effect,
-                    theta: r.xs.iter().take(steps.len()).map(|x| x[0]).collect(),
-                    steps,
-                },
-            )?;
+            report.plot(dir, r, steps)?;
         }
-        let (out, n) = (tracked.out, tracked.measured);
-        let trusted = out.trust.is_trusted();
-        let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         if a.json {
-            let mut v = serde_json::json!({
-                "rollout": r.id, "params": out.params, "param_std": out.param_std,
-                "param_names": names, "coordinate": out.coordinate,
-                "coordinate_std": out.coordinate_std, "sigma": out.sigma[0], "trusted": trusted,
-                "trust": out.trust.as_str(), "trust_reasons": reasons, "steps": n,
-                "predicted": tracked.predicted, "off_envelope": out.off_envelope,
-                "held": out.held,
-                "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
-                "rig": rig, "length_label": rig.length_label(),
-                "offset": out.offset, "offset_std": out.offset_std, "outliers": out.outliers,
-            });
-            if let Some(s) = source {
-                add_source(&mut v, s);
-            }
-            super::say(&v.to_string())?;
+            report.json(r.id, &tracked, source)?;
         } else {
-            let effect_cols = effect_label.as_ref().map_or(String::new(), |_| {
-                format!("{:>18.4}  {:>10.4}  ", out.params[1], out.param_std[1])
-            });
-            let glitch_col = match (sources.is_empty(), source) {
-                (true, _) => String::new(),
-                (false, Some(s)) => format!("{:>8}  ", s.glitches),
-                (false, None) => format!("{:>8}  ", "-"),
-            };
-            super::say(&format!(
-                "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {:>12}  {:>8}  {:>8}  {glitch_col}{}{}",
-                r.id,
-                n,
-                out.params[0],
-                out.param_std[0],
-                out.sigma[0],
-                or_dash(out.offset),
-                or_dash(out.offset_std),
-                out.outliers,
-                out.trust.as_str(),
-                if reasons.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", reasons.join(", "))
-                }
-            ))?;
-            if out.held {
-                super::say(&format!(
-                    "         (held from the last swing of at least {:.3} rad: the swing is smaller now)",
-                    body.trust.min_swing
-                ))?;
-            }
-            if tracked.predicted > 0 {
-                super::say(&format!(
-                    "         (gaps in the time stamps: {} steps predicted without a sample)",
-                    tracked.predicted
-                ))?;
-            }
+            report.text(r.id, &tracked, source)?;
         }
     }
     Ok(())
+}
+
+/// What every rollout's report reads: the arguments and the blob.
+struct Report<'a> {
+    a: &'a Args,
+    body: Body<'a>,
+    names: Vec<&'a str>,
+    /// The effect's column heading, where the blob declares one.
+    effect_label: Option<String>,
+    /// Whether the project CSV records its sources (a glitches column).
+    sources: bool,
+}
+
+impl<'a> Report<'a> {
+    fn of(a: &'a Args, body: Body<'a>, sources: bool) -> Self {
+        let names: Vec<&str> = body.params.iter().map(|p| p.name).collect();
+        let effect_label = body.params[1]
+            .declared
+            .then(|| format!("{} ({})", names[1], effect_unit(names[1])));
+        Report {
+            a,
+            body,
+            names,
+            effect_label,
+            sources,
+        }
+    }
+
+    /// The text table's heading.
+    fn header(&self) -> Result<()> {
+        let effect_head = self
+            .effect_label
+            .as_ref()
+            .map_or(String::new(), |l| format!("{l:>18}  {:>10}  ", "std"));
+        let glitch_head = if self.sources {
+            format!("{:>8}  ", "glitches")
+        } else {
+            String::new()
+        };
+        super::say(&format!(
+            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  {:>12}  {:>8}  {:>8}  {glitch_head}trust",
+            self.body.rig.length_label(),
+            "std",
+            "sigma",
+            "offset (rad)",
+            "std",
+            "outliers"
+        ))
+    }
+
+    /// `fresh`, told the source's own interval where the sidecar records
+    /// it for rollout `id`.
+    fn estimator<'m>(
+        &self,
+        fresh: &Estimator<'m>,
+        id: u32,
+        source: Option<&SourceMeta>,
+    ) -> Result<Estimator<'m>> {
+        let Some(s) = source else {
+            return Ok(fresh.clone());
+        };
+        fresh
+            .clone()
+            .with_source_interval(s.median_interval as f32)
+            .map_err(|e| {
+                anyhow::anyhow!(
+                    "{}: rollout {id}: source interval {} s: {e}",
+                    self.a.data.display(),
+                    s.median_interval
+                )
+            })
+    }
+
+    /// The rollout's figure, in `dir`.
+    fn plot(&self, dir: &Path, r: &Rollout, steps: Vec<(f64, StepOutput)>) -> Result<()> {
+        let (a, body) = (self.a, &self.body);
+        let effect = body.params[1]
+            .declared
+            .then(|| (self.names[1], effect_unit(self.names[1])));
+        let g_note = match a.g {
+            Some(g) => format!("g = {g} declared"),
+            None => format!("g not declared: read at the blob's {}", body.g),
+        };
+        figure::estimate(
+            &dir.join(format!("rollout-{}.png", r.id)),
+            &Trace {
+                title: format!(
+                    "{} rollout {} with {} ({g_note})",
+                    a.data.display(),
+                    r.id,
+                    a.weights.display()
+                ),
+                length_label: body.rig.length_label().to_string(),
+                effect,
+                theta: r.xs.iter().take(steps.len()).map(|x| x[0]).collect(),
+                steps,
+            },
+        )
+    }
+
+    /// The rollout's line of `--json`.
+    fn json(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+        let (a, body, rig) = (self.a, &self.body, self.body.rig);
+        let (out, n) = (&tracked.out, tracked.measured);
+        let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
+        let mut v = serde_json::json!({
+            "rollout": id, "params": out.params, "param_std": out.param_std,
+            "param_names": self.names, "coordinate": out.coordinate,
+            "coordinate_std": out.coordinate_std, "sigma": out.sigma[0],
+            "trusted": out.trust.is_trusted(),
+            "trust": out.trust.as_str(), "trust_reasons": reasons, "steps": n,
+            "predicted": tracked.predicted, "off_envelope": out.off_envelope,
+            "held": out.held,
+            "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
+            "rig": rig, "length_label": rig.length_label(),
+            "offset": out.offset, "offset_std": out.offset_std, "outliers": out.outliers,
+        });
+        if let Some(s) = source {
+            add_source(&mut v, s);
+        }
+        super::say(&v.to_string())
+    }
+
+    /// The rollout's row of the text table, and its notes.
+    fn text(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+        let (out, n) = (&tracked.out, tracked.measured);
+        let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
+        let effect_cols = self.effect_label.as_ref().map_or(String::new(), |_| {
+            format!("{:>18.4}  {:>10.4}  ", out.params[1], out.param_std[1])
+        });
+        let glitch_col = match (self.sources, source) {
+            (false, _) => String::new(),
+            (true, Some(s)) => format!("{:>8}  ", s.glitches),
+            (true, None) => format!("{:>8}  ", "-"),
+        };
+        super::say(&format!(
+            "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {:>12}  {:>8}  {:>8}  {glitch_col}{}{}",
+            id,
+            n,
+            out.params[0],
+            out.param_std[0],
+            out.sigma[0],
+            or_dash(out.offset),
+            or_dash(out.offset_std),
+            out.outliers,
+            out.trust.as_str(),
+            if reasons.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", reasons.join(", "))
+            }
+        ))?;
+        if out.held {
+            super::say(&format!(
+                "         (held from the last swing of at least {:.3} rad: the swing is smaller now)",
+                self.body.trust.min_swing
+            ))?;
+        }
+        if tracked.predicted > 0 {
+            super::say(&format!(
+                "         (gaps in the time stamps: {} steps predicted without a sample)",
+                tracked.predicted
+            ))?;
+        }
+        Ok(())
+    }
 }
 
 /// A figure to 4 decimals, `-` where there is none yet.

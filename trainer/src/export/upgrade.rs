@@ -15,7 +15,7 @@ use estimator::blob::{
 };
 use estimator::{PARAM_DIM, Rig, STATE_DIM};
 use serde::Deserialize;
-use trainer_core::calibrate::blob_bytes;
+use trainer_core::calibrate::{OPEN, blob_bytes};
 
 /// The trust section of format 6: without `max_unevenness`.
 #[derive(Deserialize)]
@@ -41,12 +41,7 @@ impl<'a> TrustSpecV6<'a> {
             std_scale: self.std_scale,
             std_floor: self.std_floor,
             min_swing: self.min_swing,
-            max_unevenness: f32::MAX,
-            max_nis: f32::MAX,
-            nis_law: [0.0; 2],
-            max_rate_mismatch: f32::MAX,
-            max_step_nis: 0.0,
-            min_samples_per_period: 0.0,
+            ..OPEN
         }
     }
 }

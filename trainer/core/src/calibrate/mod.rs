@@ -386,14 +386,36 @@ pub fn permissive<'a>(cfg: &CalibrateConfig, q_range: [f32; 2], bits: &'a [u8]) 
         std_scale: [1.0; PARAM_DIM],
         std_floor: [0.0; PARAM_DIM],
         min_swing: 0.0,
-        max_unevenness: f32::MAX,
-        max_nis: f32::MAX,
-        nis_law: [0.0; 2],
-        max_rate_mismatch: f32::MAX,
-        max_step_nis: 0.0,
-        min_samples_per_period: 0.0,
+        ..OPEN
     }
 }
+
+/// A trust section whose checks after the swing's all pass (no envelope,
+/// every unevenness, mean innovation, rate ratio and source, no outlier
+/// gate): what [`permissive`] and an upgrade of an older format fill in
+/// until calibrated.
+pub const OPEN: TrustSpec<'static> = TrustSpec {
+    envelope: Envelope {
+        extent: 1.0,
+        theta_cells: 0,
+        rate_cells: 0,
+        q_lo: 0.0,
+        q_width: 1.0,
+        q_bins: 0,
+        bits: &[],
+    },
+    envelope_max_off: u16::MAX,
+    range: [f32::MIN, f32::MAX],
+    std_scale: [1.0; PARAM_DIM],
+    std_floor: [0.0; PARAM_DIM],
+    min_swing: 0.0,
+    max_unevenness: f32::MAX,
+    max_nis: f32::MAX,
+    nis_law: [0.0; 2],
+    max_rate_mismatch: f32::MAX,
+    max_step_nis: 0.0,
+    min_samples_per_period: 0.0,
+};
 
 /// Serialises a blob with its CRC.
 pub fn blob_bytes(blob: &Blob<'_>) -> Result<Vec<u8>> {
