@@ -86,7 +86,7 @@ fn add(c: &mut Case, kind: EffectKind, coefficient: f64) {
     c.spec.effects.push(Effect::new(kind, coefficient));
 }
 
-const AXES: [Axis; 12] = [
+const AXES: [Axis; 15] = [
     ("in distribution", |_, _| {}),
     ("length 2 to 4 m", |c, r| {
         length(c, r.random_range(2.0..=4.0))
@@ -129,6 +129,16 @@ const AXES: [Axis; 12] = [
     }),
     ("imported at 0.02 or 0.1 s", |c, r| {
         c.dt = Some([0.02, 0.1][r.random_range(0..2)])
+    }),
+    ("a source at 2 to 5 Hz", |c, r| {
+        c.spec.rate = r.random_range(2.0..=5.0)
+    }),
+    ("spikes on 5% of frames", |c, _| {
+        c.spec.artefacts.spikes = 0.05
+    }),
+    ("sensor offset 0.1 to 0.3 rad", |c, r| {
+        let m = r.random_range(0.1..=0.3);
+        c.spec.offset = if r.random_bool(0.5) { m } else { -m };
     }),
 ];
 
@@ -190,8 +200,8 @@ fn rig_blob_off_distribution_suite() {
         for _ in 0..N {
             let mut c = in_distribution(&mut rng);
             shift(&mut c, &mut rng);
-            let (first, end) =
-                labcheck::estimate(&m, &c.spec, &mut rng, c.dt, c.declared_g).unwrap();
+            let (first, end) = labcheck::estimate(&m, &c.spec, &mut rng, c.dt, c.declared_g)
+                .unwrap_or_else(|e| panic!("{name}: {e:#}"));
             if row.add(c.truth, &first, &end) {
                 let s = &c.spec;
                 eprintln!(

@@ -500,7 +500,13 @@ impl<'m> Estimator<'m> {
             }
             (None, _) => {
                 let mut n = 0.0;
-                let (m, new_p) = self.predict_update(z, &mut n)?;
+                // A measurement the update cannot take (its innovation
+                // covariance not positive definite in f32: a glitch on an
+                // ill-conditioned state) is refused like an outlier.
+                let (m, new_p) = match self.predict_update(z, &mut n) {
+                    Err(Error::FilterNotPositiveDefinite) => return self.refuse(f32::INFINITY),
+                    other => other?,
+                };
                 let std = sqrt_diag(&new_p, LATENT_DIM);
                 p = Some(new_p);
                 nis = Some(n);

@@ -229,8 +229,8 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
                 spec.length, spec.theta0
             )
         };
-        let r = import_at(&spec.record(&mut rng), dt).with_context(context)?;
-        let (first, end) = blob_reads(model, &r, dt, Some(LAB_G)).with_context(context)?;
+        let (r, source) = import_at(&spec.record(&mut rng), dt).with_context(context)?;
+        let (first, end) = blob_reads(model, &r, dt, Some(LAB_G), source).with_context(context)?;
         let (peer_first, peer_end) = peer_reads(&r, dt, LAB_G, rig).with_context(context)?;
         let Some(effect) = spec.effects.first() else {
             anyhow::bail!("lab recording {k} has no dissipation");
@@ -333,24 +333,33 @@ pub fn estimate(
     g: Option<f64>,
 ) -> Result<(At, At)> {
     let dt = dt.unwrap_or(f64::from(model.blob().body.dt));
-    let r = import_at(&spec.record(rng), dt)?;
-    blob_reads(model, &r, dt, g)
+    let (r, source) = import_at(&spec.record(rng), dt)?;
+    blob_reads(model, &r, dt, g, source)
 }
 
-/// `rec` imported as a user imports it, at `dt`.
-fn import_at(rec: &import::Recording, dt: f64) -> Result<Rollout> {
+/// `rec` imported as a user imports it, at `dt`, with its source's own
+/// median interval (declared to the estimator as `koopman estimate`
+/// does).
+fn import_at(rec: &import::Recording, dt: f64) -> Result<(Rollout, f64)> {
     let opts = ImportOptions {
         dt,
         ..ImportOptions::default()
     };
-    import::to_rollout(rec, 0, &opts)
+    let (r, source) = import::to_rollout_with_source(rec, 0, &opts)?;
+    Ok((r, source.median_interval))
 }
 
 /// `model`'s estimator over `r` (sampled at `dt`) at the declared `g`
 /// (`None`: not declared): after the first [`WINDOW`] measurements and at
-/// the end.
-fn blob_reads(model: &Model<'_>, r: &Rollout, dt: f64, g: Option<f64>) -> Result<(At, At)> {
-    let mut fresh = Estimator::new(model);
+/// the end; the source's own interval `source_dt` declared.
+fn blob_reads(
+    model: &Model<'_>,
+    r: &Rollout,
+    dt: f64,
+    g: Option<f64>,
+    source_dt: f64,
+) -> Result<(At, At)> {
+    let mut fresh = Estimator::new(model).with_source_interval(source_dt as f32)?;
     if let Some(g) = g {
         fresh = fresh.with_gravity(g as f32)?;
     }
