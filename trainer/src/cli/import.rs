@@ -25,7 +25,7 @@ pub struct Args {
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     let opts = a.recording.options()?;
-    let (ds, sources) = import::import_with_sources(&a.inputs, &opts)?;
+    let (ds, sources, layouts) = import::import_with_layouts(&a.inputs, &opts)?;
     let dir = a
         .out
         .parent()
@@ -37,7 +37,13 @@ pub fn run(a: Args) -> Result<()> {
         .and_then(|s| s.to_str())
         .context("--out needs a file name")?;
     let csv = data::write_imported(&ds, &sources, dir, name)?;
-    for ((p, r), s) in a.inputs.iter().zip(&ds.rollouts).zip(&sources) {
+    for (((p, r), s), layout) in a
+        .inputs
+        .iter()
+        .zip(&ds.rollouts)
+        .zip(&sources)
+        .zip(&layouts)
+    {
         super::say(&format!(
             "{} -> rollout {}: {} steps of {} s",
             p.display(),
@@ -45,6 +51,7 @@ pub fn run(a: Args) -> Result<()> {
             r.xs.len(),
             opts.dt
         ))?;
+        eprintln!("{}: {}", p.display(), layout.describe());
         eprintln!("{}: {}", p.display(), sampling(s, opts.dt));
     }
     super::say(&format!("wrote {}", csv.display()))?;

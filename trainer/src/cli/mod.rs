@@ -99,9 +99,10 @@ impl From<Unit> for trainer_core::data::import::Unit {
 /// `close-loop` share.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RecordingArgs {
-    /// Angle unit of a plain CSV (the encoder format is in degrees).
-    #[arg(long, value_enum, default_value_t = Unit::Radians)]
-    pub unit: Unit,
+    /// Angle unit of a plain CSV (the encoder format is in degrees; default:
+    /// the header's, e.g. `Angle (°)`, else radians). Overrides the header.
+    #[arg(long, value_enum)]
+    pub unit: Option<Unit>,
     /// Sample rate, Hz, of a plain CSV without a time column.
     #[arg(long)]
     pub rate: Option<f64>,
@@ -143,7 +144,8 @@ impl RecordingArgs {
             "--rate must be a positive number"
         );
         Ok(trainer_core::data::import::ImportOptions {
-            unit: self.unit.into(),
+            unit: self.unit.unwrap_or(Unit::Radians).into(),
+            unit_given: self.unit.is_some(),
             rate: self.rate,
             dt: self.dt,
             start: self.start,

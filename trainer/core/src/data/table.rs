@@ -3,9 +3,12 @@
 //! that every problem names the file and line ([`CsvError`]).
 //!
 //! The separator is a comma, a tab or a semicolon, whichever the header
-//! line has most of. Blank lines are skipped; rows may have fewer or more
+//! line has most of; with a tab or a semicolon a number may have a decimal
+//! comma (`0,25`). Blank lines are skipped; rows may have fewer or more
 //! fields than the header (the reader that asks for a field says which is
-//! missing).
+//! missing). A byte-order mark at the start is ignored, CRLF reads as LF,
+//! and a file that is not UTF-8 is read as Latin-1 (a `°` written by a
+//! Windows tool).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -62,6 +65,8 @@ pub struct Table {
     pub header: Vec<String>,
     /// The data rows after the header.
     pub rows: Vec<Row>,
+    /// The separator: `,`, tab or `;`.
+    pub separator: u8,
 }
 
 /// The separator the header line uses most: `,`, tab or `;` (`,` when it
@@ -77,6 +82,7 @@ impl Table {
     /// Parses `text` (the contents of `path`): the first non-blank line is
     /// the header.
     pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
         let sep = separator(first);
         let mut header: Option<Vec<String>> = None;
@@ -114,13 +120,16 @@ impl Table {
             path: path.to_path_buf(),
             header,
             rows,
+            separator: sep,
         })
     }
 
     /// Reads and parses the file at `path`.
     pub fn read(path: &Path) -> Result<Table, CsvError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+        let bytes =
+            std::fs::read(path).map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+        let text = String::from_utf8(bytes)
+            .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect());
         Table::parse(path, &text)
     }
 
@@ -135,13 +144,25 @@ impl Table {
             .fields
             .get(k)
             .ok_or_else(|| self.error(row.line, format!("missing {what} (column {})", k + 1)))?;
-        let v: f64 = f
+        let v: f64 = self
+            .decimal_point(f)
             .parse()
             .map_err(|_| self.error(row.line, format!("{what} {f:?} is not a number")))?;
         if !v.is_finite() {
             return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
         }
         Ok(v)
+    }
+
+    /// `field` with a decimal comma made a point, where the separator is
+    /// not a comma and the field has one comma and no point.
+    fn decimal_point<'a>(&self, field: &'a str) -> std::borrow::Cow<'a, str> {
+        let one_comma = field.matches(',').count() == 1 && !field.contains('.');
+        if self.separator != b',' && one_comma {
+            field.replace(',', ".").into()
+        } else {
+            field.into()
+        }
     }
 }
 
@@ -178,5 +199,33 @@ mod tests {
                 .to_string()
                 .contains("n.csv:3: x \"abc\" is not a number")
         );
+    }
+
+    /// A byte-order mark, CRLF and decimal commas with tab or semicolon
+    /// separators; a comma-separated file keeps its commas as separators.
+    #[test]
+    fn a_bom_crlf_and_decimal_commas() {
+        let text = "\u{feff}Time (s)\tAngle (rad)\r\n0,0000\t-1,25\r\n\r\n0,0200\t3\r\n";
+        let t = Table::parse(Path::new("p.txt"), text).unwrap();
+        assert_eq!(t.header, ["Time (s)", "Angle (rad)"]);
+        assert_eq!(t.rows[1].line, 4);
+        assert_eq!(t.number(&t.rows[0], 1, "angle").unwrap(), -1.25);
+        assert_eq!(t.number(&t.rows[1], 0, "time").unwrap(), 0.02);
+        let t = Table::parse(Path::new("s.csv"), "t;x\n1,5;2\n1,2,3;4.5\n").unwrap();
+        assert_eq!(t.number(&t.rows[0], 0, "t").unwrap(), 1.5);
+        assert!(t.number(&t.rows[1], 0, "t").is_err());
+        assert_eq!(t.number(&t.rows[1], 1, "x").unwrap(), 4.5);
+        let t = Table::parse(Path::new("c.csv"), "t,x\n1,5\n").unwrap();
+        assert_eq!(t.rows[0].fields, ["1", "5"]);
+    }
+
+    /// A file that is not UTF-8 is read as Latin-1: a Windows tool's `°`.
+    #[test]
+    fn a_latin_1_file_is_read() {
+        let path = std::env::temp_dir().join(format!("koopman-{}-latin1.csv", std::process::id()));
+        std::fs::write(&path, b"t,Angle (\xb0)\n0,1\n").unwrap();
+        let t = Table::read(&path);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(t.unwrap().header, ["t", "Angle (°)"]);
     }
 }

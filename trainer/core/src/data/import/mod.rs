@@ -7,10 +7,13 @@
 //!   `k / sample_rate` s;
 //! - a table with a header line, comma-, tab- or semicolon-separated, whose
 //!   time, angle and (optional) rate columns the user names ([`Columns`])
-//!   or which has the usual names (`t`, `theta`, `theta_dot`, ...); without a
-//!   time column the sample rate is given (`--rate`).
+//!   or which has the usual names (`t`, `theta`, `theta_dot`, ...), also
+//!   as Vernier Graphical Analysis and PASCO Capstone write them (a run
+//!   prefix or suffix, quotes, a byte-order mark, a decimal comma); without
+//!   a time column the sample rate is given (`--rate`).
 //!
-//! Angles are converted to radians. Where the rate is missing it is derived
+//! Angles are converted to radians, from the unit the header names unless
+//! `--unit degrees` is given ([`Layout`]). Where the rate is missing it is derived
 //! by a smoothing differentiator: the least-squares slope over a centred
 //! window of `2m + 1` samples, `theta_dot_i = sum_k k theta_{i+k} / (h sum_k k^2)`
 //! (Savitzky-Golay, first derivative, linear or quadratic fit), a
@@ -47,11 +50,13 @@ mod differentiate;
 mod glitch;
 mod read;
 mod resample;
+#[cfg(test)]
+mod tool_exports;
 
 pub use checks::{MIN_SPAN_DEGREES, MIN_SPAN_RADIANS, check_recording};
 pub use differentiate::{differentiate, differentiate_uneven, rough_period};
 pub use glitch::glitches;
-pub use read::{parse, parse_table};
+pub use read::{Layout, UnitSource, parse, parse_table, parse_table_with_layout};
 
 use crate::protocol::DT;
 
@@ -75,6 +80,10 @@ pub enum Unit {
 pub struct ImportOptions {
     /// Unit of the angles (the rotary-encoder format is always degrees).
     pub unit: Unit,
+    /// Whether `unit` was given (`--unit`): it then overrides a unit the
+    /// header names. Degrees always do.
+    #[serde(skip)]
+    pub unit_given: bool,
     /// Sample rate, Hz, for inputs without a time column (the rotary-encoder
     /// format states its own).
     pub rate: Option<f64>,
@@ -96,6 +105,7 @@ impl Default for ImportOptions {
     fn default() -> Self {
         ImportOptions {
             unit: Unit::Radians,
+            unit_given: false,
             rate: None,
             dt: DT,
             start: 0.0,
@@ -118,8 +128,9 @@ pub struct Recording {
 }
 
 /// Which columns of a plain CSV hold what: a header name (compared
-/// without case and without a unit in brackets or parentheses, so `theta`
-/// names `Theta [deg]`) or a 1-based column number. Unset: the first of
+/// without case, quotes, a run prefix or suffix and a unit in brackets or
+/// parentheses, spaces as `_`, so `theta` names `Run 1: Theta [deg]`) or a
+/// 1-based column number. Unset: the first of
 /// the usual names ([`TIME_NAMES`], [`ANGLE_NAMES`], [`RATE_NAMES`]).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Columns {
@@ -215,14 +226,34 @@ pub fn import_with_sources(
     paths: &[std::path::PathBuf],
     opts: &ImportOptions,
 ) -> Result<(Dataset, Vec<SourceMeta>)> {
+    let (dataset, sources, _) = import_with_layouts(paths, opts)?;
+    Ok((dataset, sources))
+}
+
+/// [`import_with_sources`], and what was read from each file ([`Layout`]).
+/// An angle whose header names its unit is checked as one given in it.
+pub fn import_with_layouts(
+    paths: &[std::path::PathBuf],
+    opts: &ImportOptions,
+) -> Result<(Dataset, Vec<SourceMeta>, Vec<Layout>)> {
     let mut rollouts = Vec::new();
     let mut sources = Vec::new();
+    let mut layouts = Vec::new();
     for (k, p) in paths.iter().enumerate() {
-        let rec = parse_table(&Table::read(p)?, opts)?;
-        let (rollout, source) = to_rollout_with_source(&rec, k as u32 + 1, opts)
+        let (rec, layout) = parse_table_with_layout(&Table::read(p)?, opts)?;
+        let unit = match layout.angle_unit {
+            (unit, UnitSource::Header) => unit,
+            _ => opts.unit,
+        };
+        let opts = ImportOptions {
+            unit,
+            ..opts.clone()
+        };
+        let (rollout, source) = to_rollout_with_source(&rec, k as u32 + 1, &opts)
             .with_context(|| format!("{}", p.display()))?;
         rollouts.push(rollout);
         sources.push(source);
+        layouts.push(layout);
     }
     let dataset = Dataset {
         rollouts,
@@ -234,7 +265,7 @@ pub fn import_with_sources(
             rollouts: Vec::new(),
         },
     };
-    Ok((dataset, sources))
+    Ok((dataset, sources, layouts))
 }
 
 #[cfg(test)]
