@@ -248,6 +248,9 @@ impl<'a> Report<'a> {
                 tracked.predicted
             ))?;
         }
+        if let Some(s) = source.filter(|s| s.angle_from != "measured") {
+            super::say(&format!("         (angle {})", s.angle_from))?;
+        }
         Ok(())
     }
 }
@@ -263,6 +266,7 @@ fn add_source(v: &mut serde_json::Value, s: &SourceMeta) {
     v["source_largest_gap"] = s.largest_gap.into();
     v["interpolated"] = s.interpolated.into();
     v["glitches"] = s.glitches.into();
+    v["angle_from"] = s.angle_from.clone().into();
 }
 
 /// The unit of an effect named in a blob (`?` for a name no effect has).

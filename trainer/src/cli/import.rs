@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use trainer_core::data::{self, SourceMeta, import};
+use trainer_core::data::import::{AngleFrom, Layout};
+use trainer_core::data::{self, Rollout, SourceMeta, import};
 
 use super::RecordingArgs;
 
@@ -37,22 +38,19 @@ pub fn run(a: Args) -> Result<()> {
         .and_then(|s| s.to_str())
         .context("--out needs a file name")?;
     let csv = data::write_imported(&ds, &sources, dir, name)?;
-    for (((p, r), s), layout) in a
-        .inputs
-        .iter()
-        .zip(&ds.rollouts)
-        .zip(&sources)
-        .zip(&layouts)
-    {
+    for ((r, s), layout) in ds.rollouts.iter().zip(&sources).zip(&layouts) {
+        let file = &layout.file;
         super::say(&format!(
-            "{} -> rollout {}: {} steps of {} s",
-            p.display(),
+            "{file} -> rollout {}: {} steps of {} s",
             r.id,
             r.xs.len(),
             opts.dt
         ))?;
-        eprintln!("{}: {}", p.display(), layout.describe());
-        eprintln!("{}: {}", p.display(), sampling(s, opts.dt));
+        eprintln!("{file}: {}", layout.describe());
+        if let Some(check) = pivot_check(r, layout) {
+            eprintln!("{file}: {check}");
+        }
+        eprintln!("{file}: {}", sampling(s, opts.dt));
     }
     super::say(&format!("wrote {}", csv.display()))?;
     Ok(())
@@ -72,4 +70,20 @@ fn sampling(s: &SourceMeta, dt: f64) -> String {
         s.glitches,
         if s.glitches == 1 { "" } else { "es" }
     )
+}
+
+/// For an angle taken about a pivot, the bob's distance from it beside
+/// the length its swing's period gives at g = 9.81 (a check the user can
+/// make: equal where the track is in metres and the bob is a point).
+fn pivot_check(r: &Rollout, layout: &Layout) -> Option<String> {
+    let AngleFrom::Position { radius, .. } = layout.angle_from else {
+        return None;
+    };
+    let theta: Vec<f64> = r.xs.iter().map(|x| x[0]).collect();
+    let period = import::rough_period(&r.t, &theta)?;
+    let w = 2.0 * std::f64::consts::PI / period;
+    Some(format!(
+        "the bob is {radius:.4} from the pivot (the file's units); the swing's period {period:.3} s gives g / w^2 = {:.4} m at g = 9.81",
+        9.81 / (w * w)
+    ))
 }

@@ -130,6 +130,25 @@ pub struct RecordingArgs {
     /// twentieth of the swing's period).
     #[arg(long)]
     pub smooth: Option<f64>,
+    /// The pivot of a tracked position, `X,Y` in the file's units
+    /// (default: the origin where the bob keeps its distance from it, else
+    /// the centre of the arc fitted to the track).
+    #[arg(long, value_parser = parse_pivot, allow_hyphen_values = true)]
+    pub pivot: Option<[f64; 2]>,
+}
+
+/// `X,Y` as two finite numbers.
+fn parse_pivot(text: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let bad = || format!("{text:?}: give the pivot as X,Y (two numbers)");
+    let [x, y] = parts.as_slice() else {
+        return Err(bad());
+    };
+    let (x, y): (f64, f64) = (x.parse().map_err(|_| bad())?, y.parse().map_err(|_| bad())?);
+    if !(x.is_finite() && y.is_finite()) {
+        return Err(bad());
+    }
+    Ok([x, y])
 }
 
 impl RecordingArgs {
@@ -156,6 +175,7 @@ impl RecordingArgs {
                 angle: self.angle_column.clone(),
                 rate: self.rate_column.clone(),
             },
+            pivot: self.pivot,
         })
     }
 }

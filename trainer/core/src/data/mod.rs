@@ -60,6 +60,15 @@ pub struct SourceMeta {
     pub interpolated: bool,
     /// Samples dropped as single-frame glitches ([`import::glitches`]).
     pub glitches: usize,
+    /// Where the angle came from: `measured`, `integrated from the rate`
+    /// or `position about the pivot` ([`import::AngleFrom::word`]).
+    #[serde(default = "measured")]
+    pub angle_from: String,
+}
+
+/// The angle of a source that does not say where it came from.
+fn measured() -> String {
+    "measured".into()
 }
 
 /// The JSON sidecar of a CSV.
@@ -151,15 +160,22 @@ pub fn read_recordings(
                 .collect());
         }
     }
-    inputs
-        .iter()
-        .map(|p| {
-            let rec = import::parse_table(&table::Table::read(p)?, opts)?;
-            import::check_recording(&rec, opts.unit)
+    let mut out = Vec::new();
+    for p in inputs {
+        let runs = import::read_recordings(p, opts)?;
+        let many = runs.len() > 1;
+        for (k, (rec, layout)) in runs.into_iter().enumerate() {
+            import::check_recording(&rec, layout.check_unit(opts.unit))
                 .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
-            Ok((p.display().to_string(), rec))
-        })
-        .collect()
+            let name = match (many, &layout.run) {
+                (true, Some(run)) => format!("{} {run}", p.display()),
+                (true, None) => format!("{} recording {}", p.display(), k + 1),
+                _ => p.display().to_string(),
+            };
+            out.push((name, rec));
+        }
+    }
+    Ok(out)
 }
 
 /// For each row after the first, how many model steps of `dt` lie between

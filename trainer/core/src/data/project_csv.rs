@@ -213,6 +213,7 @@ mod tests {
             largest_gap: 0.25,
             interpolated: true,
             glitches: 2,
+            angle_from: "integrated from the rate".into(),
         }];
         let csv = write_imported(&ds, &sources, &dir, "imported").unwrap();
         assert_eq!(read_sources(&csv).unwrap(), sources);

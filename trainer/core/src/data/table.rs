@@ -61,64 +61,145 @@ pub struct Row {
 pub struct Table {
     /// The file (for errors).
     pub path: PathBuf,
-    /// The header's fields, trimmed, as written.
+    /// The lines before the header (a Tracker track's name, a logger's
+    /// messages), trimmed, blank ones left out.
+    pub preamble: Vec<String>,
+    /// The header's fields, trimmed, as written; `column 1`, `column 2`,
+    /// ... where the file has no header line ([`Table::named`] false).
     pub header: Vec<String>,
+    /// Whether the header is the file's own.
+    pub named: bool,
     /// The data rows after the header.
     pub rows: Vec<Row>,
     /// The separator: `,`, tab or `;`.
     pub separator: u8,
 }
 
-/// The separator the header line uses most: `,`, tab or `;` (`,` when it
-/// has none).
-pub fn separator(header_line: &str) -> u8 {
-    [b',', b'\t', b';']
-        .into_iter()
-        .max_by_key(|&c| (header_line.bytes().filter(|&b| b == c).count(), c == b','))
-        .unwrap_or(b',')
+/// A line's separator: a tab where it has one, else a semicolon where it
+/// has one, else a comma (a decimal comma goes with a tab or a semicolon).
+pub fn separator(line: &str) -> u8 {
+    if line.contains('\t') {
+        b'\t'
+    } else if line.contains(';') {
+        b';'
+    } else {
+        b','
+    }
+}
+
+/// A line's fields split at `sep` by the csv crate (quotes, spaces), a
+/// list's brackets (`[1.0, 2.0]`, as a logger prints a row) left out;
+/// `None` for an empty line.
+fn fields(text_line: &str, sep: u8) -> Result<Option<Vec<String>>, csv::Error> {
+    let trimmed = text_line.trim();
+    let inner = trimmed
+        .strip_prefix('[')
+        .and_then(|l| l.strip_suffix(']'))
+        .unwrap_or(trimmed);
+    let mut reader = csv::ReaderBuilder::new()
+        .delimiter(sep)
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .buffer_capacity(inner.len() + 8)
+        .from_reader(inner.as_bytes());
+    let mut record = csv::StringRecord::new();
+    Ok(reader
+        .read_record(&mut record)?
+        .then(|| record.iter().map(str::to_string).collect()))
+}
+
+/// A field as a number: a decimal comma read where `sep` is not a comma;
+/// `NaN` (padding) reads as NaN.
+fn parse_number(field: &str, sep: u8) -> Option<f64> {
+    let one_comma = field.matches(',').count() == 1 && !field.contains('.');
+    if sep != b',' && one_comma {
+        field.replace(',', ".").parse().ok()
+    } else {
+        field.parse().ok()
+    }
+}
+
+/// Whether `fields` is a data row: two or more fields, each a number,
+/// `NaN` or empty, at least two of them finite numbers.
+fn is_data(fields: &[String], sep: u8) -> bool {
+    let numbers = fields
+        .iter()
+        .filter(|f| parse_number(f, sep).is_some_and(f64::is_finite))
+        .count();
+    numbers >= 2
+        && fields
+            .iter()
+            .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+}
+
+/// Bytes as text: UTF-8, else Latin-1 (a Windows tool's `°`).
+pub fn decode(bytes: Vec<u8>) -> String {
+    String::from_utf8(bytes)
+        .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect())
 }
 
 impl Table {
-    /// Parses `text` (the contents of `path`): the first non-blank line is
-    /// the header.
+    /// Parses `text` (the contents of `path`).
+    ///
+    /// The header is the line just before the first data row (two or more
+    /// fields, all numbers, `NaN` or empty) where it has as many fields or
+    /// two or more and is no data row itself; the lines above it are the preamble. A
+    /// file whose first data row follows no such line has no header: its
+    /// columns are named `column 1`, `column 2`, ... and every line above
+    /// is preamble (a logger's messages).
     pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-        let sep = separator(first);
-        let mut header: Option<Vec<String>> = None;
-        let mut rows = Vec::new();
-        // Line by line, so that the line numbers are the file's (the csv
-        // crate's own count skips blank lines); each line's fields are
-        // split by the csv crate (quotes, separators, spaces).
-        for (i, text_line) in text.lines().enumerate() {
-            if text_line.trim().is_empty() {
-                continue;
-            }
-            let line = i + 1;
-            let mut reader = csv::ReaderBuilder::new()
-                .delimiter(sep)
-                .has_headers(false)
-                .flexible(true)
-                .trim(csv::Trim::All)
-                .buffer_capacity(text_line.len() + 8)
-                .from_reader(text_line.as_bytes());
-            let mut record = csv::StringRecord::new();
-            let got = reader
-                .read_record(&mut record)
-                .map_err(|e| CsvError::new(path, line, format!("unreadable: {e}")))?;
-            if !got {
-                continue;
-            }
-            let fields: Vec<String> = record.iter().map(str::to_string).collect();
-            match header {
-                None => header = Some(fields),
-                Some(_) => rows.push(Row { line, fields }),
+        let lines: Vec<(usize, &str)> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| (i + 1, l))
+            .filter(|(_, l)| !l.trim().is_empty())
+            .collect();
+        if lines.is_empty() {
+            return Err(CsvError::new(path, 0, "empty file"));
+        }
+        let unreadable = |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
+        // The first data row, its separator its own.
+        let mut first_data = None;
+        for (k, &(line, l)) in lines.iter().enumerate() {
+            let sep = separator(l);
+            if let Some(f) = fields(l, sep).map_err(|e| unreadable(line, e))?
+                && is_data(&f, sep)
+            {
+                first_data = Some((k, sep, f.len()));
+                break;
             }
         }
-        let header = header.ok_or_else(|| CsvError::new(path, 0, "empty file"))?;
+        // No data row: the first line is the header (the readers say what
+        // is missing).
+        let (data_at, sep, width) = first_data.unwrap_or((1, separator(lines[0].1), 0));
+        let header_at = data_at.checked_sub(1).filter(|&k| {
+            let (_, l) = lines[k];
+            let f = fields(l, sep).ok().flatten().unwrap_or_default();
+            first_data.is_none() || ((f.len() == width || f.len() >= 2) && !is_data(&f, sep))
+        });
+        let header = match header_at {
+            Some(k) => fields(lines[k].1, sep)
+                .map_err(|e| unreadable(lines[k].0, e))?
+                .unwrap_or_default(),
+            None => (1..=width).map(|c| format!("column {c}")).collect(),
+        };
+        let preamble = lines[..header_at.unwrap_or(data_at)]
+            .iter()
+            .map(|(_, l)| l.trim().to_string())
+            .collect();
+        let mut rows = Vec::new();
+        for &(line, l) in lines.iter().skip(data_at) {
+            if let Some(fields) = fields(l, sep).map_err(|e| unreadable(line, e))? {
+                rows.push(Row { line, fields });
+            }
+        }
         Ok(Table {
             path: path.to_path_buf(),
+            preamble,
             header,
+            named: header_at.is_some(),
             rows,
             separator: sep,
         })
@@ -128,9 +209,7 @@ impl Table {
     pub fn read(path: &Path) -> Result<Table, CsvError> {
         let bytes =
             std::fs::read(path).map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
-        let text = String::from_utf8(bytes)
-            .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect());
-        Table::parse(path, &text)
+        Table::parse(path, &decode(bytes))
     }
 
     /// A problem at `line`.
@@ -140,29 +219,30 @@ impl Table {
 
     /// Field `k` of `row` as a finite number; `what` names it in errors.
     pub fn number(&self, row: &Row, k: usize, what: &str) -> Result<f64, CsvError> {
-        let f = row
-            .fields
-            .get(k)
-            .ok_or_else(|| self.error(row.line, format!("missing {what} (column {})", k + 1)))?;
-        let v: f64 = self
-            .decimal_point(f)
-            .parse()
-            .map_err(|_| self.error(row.line, format!("{what} {f:?} is not a number")))?;
-        if !v.is_finite() {
-            return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
+        match self.optional_number(row, k, what)? {
+            Some(v) if v.is_finite() => Ok(v),
+            Some(v) => Err(self.error(row.line, format!("{what} is {v}, not a finite number"))),
+            None => Err(self.error(row.line, format!("missing {what} (column {})", k + 1))),
         }
-        Ok(v)
     }
 
-    /// `field` with a decimal comma made a point, where the separator is
-    /// not a comma and the field has one comma and no point.
-    fn decimal_point<'a>(&self, field: &'a str) -> std::borrow::Cow<'a, str> {
-        let one_comma = field.matches(',').count() == 1 && !field.contains('.');
-        if self.separator != b',' && one_comma {
-            field.replace(',', ".").into()
-        } else {
-            field.into()
+    /// Field `k` of `row` as a number, `None` where it is empty or
+    /// missing (`NaN` is returned as NaN); text is an error.
+    pub fn optional_number(
+        &self,
+        row: &Row,
+        k: usize,
+        what: &str,
+    ) -> Result<Option<f64>, CsvError> {
+        let Some(f) = row.fields.get(k).filter(|f| !f.is_empty()) else {
+            return Ok(None);
+        };
+        let v = parse_number(f, self.separator)
+            .ok_or_else(|| self.error(row.line, format!("{what} {f:?} is not a number")))?;
+        if v.is_infinite() {
+            return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
         }
+        Ok(Some(v))
     }
 }
 
@@ -227,5 +307,28 @@ mod tests {
         let t = Table::read(&path);
         std::fs::remove_file(&path).unwrap();
         assert_eq!(t.unwrap().header, ["t", "Angle (°)"]);
+    }
+
+    /// A Tracker export's track name above its header, and a logger's
+    /// messages above rows written as lists, with no header: the first
+    /// data row finds the header (or none) and the separator.
+    #[test]
+    fn a_preamble_and_rows_as_lists() {
+        let text = "mass_A\nt\tx\ty\n0,5\t1,0E-1\t-2\n";
+        let t = Table::parse(Path::new("tr.txt"), text).unwrap();
+        assert_eq!(t.preamble, ["mass_A"]);
+        assert_eq!(t.header, ["t", "x", "y"]);
+        assert!(t.named);
+        assert_eq!(t.number(&t.rows[0], 1, "x").unwrap(), 0.1);
+        assert_eq!(t.rows[0].line, 3);
+        let text = "Spatial 302088 Attached!\nwaiting 30 seconds to start...\n[31.052, 0.03, 0.99]\n[31.056, NaN, 1e-2]\n";
+        let t = Table::parse(Path::new("imu.txt"), text).unwrap();
+        assert!(!t.named);
+        assert_eq!(t.header, ["column 1", "column 2", "column 3"]);
+        assert_eq!(t.preamble.len(), 2);
+        assert_eq!(t.rows[1].fields, ["31.056", "NaN", "1e-2"]);
+        assert!(t.optional_number(&t.rows[1], 1, "x").unwrap().unwrap().is_nan());
+        assert_eq!(t.optional_number(&t.rows[1], 5, "x").unwrap(), None);
+        assert!(t.number(&t.rows[1], 1, "x").unwrap_err().to_string().contains("imu.txt:4: x is NaN"));
     }
 }

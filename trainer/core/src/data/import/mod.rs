@@ -45,10 +45,14 @@
 //! `resample`; here the types and the steps of an import ([`to_rollout`],
 //! [`import()`]).
 
+mod archive;
 mod checks;
 mod differentiate;
 mod glitch;
+mod position;
+mod rate_only;
 mod read;
+mod releases;
 mod resample;
 #[cfg(test)]
 mod tool_exports;
@@ -56,13 +60,19 @@ mod tool_exports;
 pub use checks::{MIN_SPAN_DEGREES, MIN_SPAN_RADIANS, check_recording};
 pub use differentiate::{differentiate, differentiate_uneven, rough_period};
 pub use glitch::glitches;
-pub use read::{Layout, UnitSource, parse, parse_table, parse_table_with_layout};
+pub use archive::read_tables;
+pub use position::{PivotFrom, Pivoted, about_pivot};
+pub use rate_only::{Integrated, integrate};
+pub use releases::releases;
+pub use read::{
+    AngleFrom, Layout, UnitSource, parse, parse_runs, parse_table, parse_table_with_layout,
+    unrecognised,
+};
 
 use crate::protocol::DT;
 
 use anyhow::{Context, Result};
 
-use super::table::Table;
 use super::{Dataset, Rollout, Sidecar, SourceMeta};
 use resample::Part;
 
@@ -99,6 +109,9 @@ pub struct ImportOptions {
     pub smooth: Option<f64>,
     /// Which columns of a plain CSV hold what.
     pub columns: Columns,
+    /// The pivot of a tracked position (x, y in the file's units); `None`:
+    /// the origin or the fitted arc's centre ([`about_pivot`]).
+    pub pivot: Option<[f64; 2]>,
 }
 
 impl Default for ImportOptions {
@@ -112,6 +125,7 @@ impl Default for ImportOptions {
             duration: None,
             smooth: None,
             columns: Columns::default(),
+            pivot: None,
         }
     }
 }
@@ -207,6 +221,7 @@ pub fn to_rollout_with_source(
         largest_gap: resample::largest_step(&rec.t),
         interpolated: grid.interpolated,
         glitches: dropped,
+        angle_from: AngleFrom::Measured.word().into(),
     };
     let rollout = Rollout {
         id,
@@ -230,8 +245,11 @@ pub fn import_with_sources(
     Ok((dataset, sources))
 }
 
-/// [`import_with_sources`], and what was read from each file ([`Layout`]).
-/// An angle whose header names its unit is checked as one given in it.
+/// [`import_with_sources`], and what was read from each recording
+/// ([`Layout`]): each file's tables ([`read_tables`]: a zip's CSVs, a
+/// workbook's sheets), each table's runs ([`parse_runs`]), one rollout a
+/// run. An angle whose header names its unit is checked as one given in
+/// it; an angle integrated or taken about a pivot, as radians.
 pub fn import_with_layouts(
     paths: &[std::path::PathBuf],
     opts: &ImportOptions,
@@ -239,21 +257,15 @@ pub fn import_with_layouts(
     let mut rollouts = Vec::new();
     let mut sources = Vec::new();
     let mut layouts = Vec::new();
-    for (k, p) in paths.iter().enumerate() {
-        let (rec, layout) = parse_table_with_layout(&Table::read(p)?, opts)?;
-        let unit = match layout.angle_unit {
-            (unit, UnitSource::Header) => unit,
-            _ => opts.unit,
-        };
-        let opts = ImportOptions {
-            unit,
-            ..opts.clone()
-        };
-        let (rollout, source) = to_rollout_with_source(&rec, k as u32 + 1, &opts)
-            .with_context(|| format!("{}", p.display()))?;
-        rollouts.push(rollout);
-        sources.push(source);
-        layouts.push(layout);
+    for p in paths {
+        for (rec, layout) in read_recordings(p, opts)? {
+            let id = rollouts.len() as u32 + 1;
+            let (rollout, source) = import_one(&rec, &layout, id, opts)
+                .with_context(|| format!("{}", p.display()))?;
+            rollouts.push(rollout);
+            sources.push(source);
+            layouts.push(layout);
+        }
     }
     let dataset = Dataset {
         rollouts,
@@ -266,6 +278,95 @@ pub fn import_with_layouts(
         },
     };
     Ok((dataset, sources, layouts))
+}
+
+/// Every recording in the file at `path`: each of its tables' runs.
+pub fn read_recordings(
+    path: &std::path::Path,
+    opts: &ImportOptions,
+) -> Result<Vec<(Recording, Layout)>> {
+    let tables = read_tables(path)?;
+    let many = tables.len() > 1;
+    let mut out = Vec::new();
+    let mut refused = Vec::new();
+    for table in &tables {
+        match parse_runs(table, opts) {
+            Ok(runs) => out.extend(runs.into_iter().flat_map(split_releases)),
+            // Of an archive's tables, those without a recording are passed
+            // over (a phyphox zip's metadata), and named if none has one.
+            Err(e) if many => refused.push(e.to_string()),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    anyhow::ensure!(
+        !out.is_empty(),
+        "{}: no table holds a recording: {}",
+        path.display(),
+        refused.join("; ")
+    );
+    Ok(out)
+}
+
+/// A recording split into its releases where it holds several
+/// ([`releases()`]), each with its place in the layout (an integrated
+/// angle detrended again on the release alone, [`rate_only::detrend`]);
+/// else as it is.
+fn split_releases((rec, layout): (Recording, Layout)) -> Vec<(Recording, Layout)> {
+    // Found on the samples that are no glitch, mapped back to the recording's.
+    let kept: Vec<usize> = glitches(&rec.t, &rec.theta)
+        .iter()
+        .enumerate()
+        .filter(|(_, g)| !**g)
+        .map(|(k, _)| k)
+        .collect();
+    let pick = |v: &[f64]| -> Vec<f64> { kept.iter().map(|&k| v[k]).collect() };
+    let Some(ranges) = releases(&pick(&rec.t), &pick(&rec.theta)) else {
+        return vec![(rec, layout)];
+    };
+    let ranges: Vec<std::ops::Range<usize>> = ranges
+        .into_iter()
+        .map(|r| kept[r.start]..kept[r.end - 1] + 1)
+        .collect();
+    let n = ranges.len();
+    ranges
+        .into_iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let mut part = Recording {
+                t: rec.t[r.clone()].to_vec(),
+                theta: rec.theta[r.clone()].to_vec(),
+                theta_dot: rec.theta_dot.as_ref().map(|v| v[r.clone()].to_vec()),
+            };
+            if let (AngleFrom::Integrated { window, .. }, Some(rate)) =
+                (&layout.angle_from, &part.theta_dot)
+            {
+                let (theta, rate) = rate_only::detrend(&part.t, rate, *window);
+                part.theta = theta;
+                part.theta_dot = Some(rate);
+            }
+            let layout = Layout {
+                release: Some((k + 1, n, rec.t[r.start], rec.t[r.end - 1])),
+                ..layout.clone()
+            };
+            (part, layout)
+        })
+        .collect()
+}
+
+/// One recording into rollout `id`, checked in the unit its layout says.
+fn import_one(
+    rec: &Recording,
+    layout: &Layout,
+    id: u32,
+    opts: &ImportOptions,
+) -> Result<(Rollout, SourceMeta)> {
+    let opts = ImportOptions {
+        unit: layout.check_unit(opts.unit),
+        ..opts.clone()
+    };
+    let (rollout, mut source) = to_rollout_with_source(rec, id, &opts)?;
+    source.angle_from = layout.angle_from.word().into();
+    Ok((rollout, source))
 }
 
 #[cfg(test)]
@@ -294,7 +395,7 @@ mod tests {
             assert!((x[0] - 2.0 * (t + 0.1)).abs() < 1e-9);
             assert_eq!(x[1], 2.0);
         }
-        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n0,2\n", &opts).unwrap_err();
+        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n-1,2\n", &opts).unwrap_err();
         assert!(e.to_string().contains("p.csv:3"), "{e}");
     }
 

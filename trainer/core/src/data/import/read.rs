@@ -7,11 +7,24 @@
 //! `angular_velocity`. The unit in brackets (`(°)`, `[deg]`, `(rad)`,
 //! `(°/s)`, `(rad/s)`) is the column's unit unless `--unit degrees` is
 //! given; what was taken is returned as a [`Layout`].
+//!
+//! What a file holds, in this order: the rotary-encoder logger's format;
+//! an angle column (with a rate column or not); a rate only (a rate
+//! column, or gyroscope axes such as phyphox's `Gyroscope x (rad/s)` or
+//! an IMU's `gx`): the angle integrated ([`super::rate_only`]); a position
+//! only (a tracker's `x`, `y`): the angle about the pivot
+//! ([`super::position`]). Columns marked with several runs (`Run 1:`,
+//! `Run #2`) are read as one recording a run. A row without a value
+//! (empty or `NaN`: padding, a frame the tracker missed) is skipped and
+//! counted. A file with none of these gets an error that names its
+//! columns, what each could be and the option to give ([`unrecognised`]).
 
 use std::path::Path;
 
-use crate::data::table::{CsvError, Table};
+use crate::data::table::{CsvError, Row, Table};
 
+use super::position::{PivotFrom, about_pivot};
+use super::rate_only::integrate;
 use super::{ANGLE_NAMES, ImportOptions, RATE_NAMES, Recording, TIME_NAMES, Unit};
 
 /// A header field without quotes, case, a run prefix (`Latest:`,
@@ -66,15 +79,58 @@ pub enum UnitSource {
     Format,
 }
 
+/// Where a recording's angle came from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AngleFrom {
+    /// A column of the file.
+    Measured,
+    /// Integrated from the rate along the swing axis ([`super::rate_only`]).
+    Integrated {
+        /// The swing axis in words.
+        axis: String,
+        /// The rate's rms along it, rad/s.
+        rms: f64,
+        /// The drift's window, s.
+        window: f64,
+    },
+    /// The position's angle about the pivot ([`super::position`]).
+    Position {
+        /// The pivot, in the file's units.
+        pivot: [f64; 2],
+        /// Where it came from.
+        from: PivotFrom,
+        /// The bob's mean distance from it.
+        radius: f64,
+        /// That distance's rms spread.
+        spread: f64,
+    },
+}
+
+impl AngleFrom {
+    /// In a word or three, as the sidecar and `estimate` say it.
+    pub fn word(&self) -> &'static str {
+        match self {
+            AngleFrom::Measured => "measured",
+            AngleFrom::Integrated { .. } => "integrated from the rate",
+            AngleFrom::Position { .. } => "position about the pivot",
+        }
+    }
+}
+
 /// What was read from a file: its layout, the columns taken (their
 /// header text) and the units of the angle and the rate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Layout {
+    /// The file (an archive's entry or sheet after a colon).
+    pub file: String,
     /// The tool whose export the header names look like, if one.
     pub tool: Option<&'static str>,
+    /// The run, where the file holds several (`Run 1`, `Run #2`).
+    pub run: Option<String>,
     /// The time column's header, `None` where the sample rate gave the times.
     pub time: Option<String>,
-    /// The angle column's header.
+    /// The angle column's header (the rate's or the position's where the
+    /// angle is derived from them).
     pub angle: String,
     /// The rate column's header, if one.
     pub rate: Option<String>,
@@ -82,28 +138,97 @@ pub struct Layout {
     pub angle_unit: (Unit, UnitSource),
     /// The rate's angle unit (per second) and where it came from.
     pub rate_unit: (Unit, UnitSource),
+    /// Where the angle came from.
+    pub angle_from: AngleFrom,
+    /// Rows skipped without a value (empty or `NaN`).
+    pub skipped: usize,
+    /// Where the file holds several releases ([`super::releases`]): this
+    /// one's place, 1-based, their number, and its first and last time, s.
+    pub release: Option<(usize, usize, f64, f64)>,
+    /// Rows skipped whose time repeats the row's before (a logger that
+    /// wrote one sample twice).
+    pub repeated: usize,
 }
 
 impl Layout {
-    /// In words, for the user: the layout, the columns taken and their units.
+    /// The unit the angle is checked in ([`super::check_recording`]): the
+    /// header's where it named one, else `given`; radians for an angle
+    /// integrated or taken about a pivot.
+    pub fn check_unit(&self, given: Unit) -> Unit {
+        match (&self.angle_from, self.angle_unit) {
+            (AngleFrom::Measured, (unit, UnitSource::Header)) => unit,
+            (AngleFrom::Measured, _) => given,
+            _ => Unit::Radians,
+        }
+    }
+
+    /// In words, for the user: the layout, the columns taken and their
+    /// units, how the angle was had and the rows skipped.
     pub fn describe(&self) -> String {
-        let lead = match self.tool {
-            Some(tool) => format!("{tool} layout:"),
-            None => "columns:".into(),
+        let lead = match (self.tool, &self.run) {
+            (Some(tool), Some(run)) => format!("{tool} layout, {run}:"),
+            (Some(tool), None) => format!("{tool} layout:"),
+            (None, Some(run)) => format!("{run}:"),
+            (None, None) => "columns:".into(),
         };
         let time = match &self.time {
             Some(h) => format!("time `{h}`"),
             None => "time from the sample rate".into(),
         };
-        let mut text = format!(
-            "{lead} {time}, angle `{}` in {}",
-            self.angle,
-            unit_words(self.angle_unit, "")
-        );
-        if let Some(h) = &self.rate {
+        let mut text = match &self.angle_from {
+            AngleFrom::Measured => format!(
+                "{lead} {time}, angle `{}` in {}",
+                self.angle,
+                unit_words(self.angle_unit, "")
+            ),
+            AngleFrom::Integrated { axis, rms, window } => format!(
+                "{lead} {time}, rate only (`{}` in {}): the swing is on {axis} (rms {rms:.3} rad/s); angle integrated from the rate, its drift removed over {window:.2} s, its zero the swing's centre",
+                self.angle,
+                unit_words(self.rate_unit, "/s")
+            ),
+            AngleFrom::Position {
+                pivot,
+                from,
+                radius,
+                spread,
+            } => {
+                let about = match from {
+                    PivotFrom::Given => "the pivot given".to_string(),
+                    PivotFrom::Origin => "the origin (the bob keeps its distance from it)".into(),
+                    PivotFrom::Fitted => format!(
+                        "the centre ({:.4}, {:.4}) of the arc fitted to the track by least squares",
+                        pivot[0], pivot[1]
+                    ),
+                };
+                format!(
+                    "{lead} {time}, position only (`{}`): angle about {about}; the bob {radius:.4} from it (rms {spread:.4} off), in the file's units",
+                    self.angle
+                )
+            }
+        };
+        if let Some(h) = &self.rate
+            && self.angle_from == AngleFrom::Measured
+        {
             text.push_str(&format!(
                 ", rate `{h}` in {}",
                 unit_words(self.rate_unit, "/s")
+            ));
+        }
+        if let Some((k, n, from, to)) = self.release {
+            text.push_str(&format!("; release {k} of {n}, {from:.2} to {to:.2} s"));
+        }
+        if self.repeated > 0 {
+            text.push_str(&format!(
+                "; {} row{} repeating the time before skipped",
+                self.repeated,
+                if self.repeated == 1 { "" } else { "s" }
+            ));
+        }
+        if self.skipped > 0 {
+            text.push_str(&format!(
+                "; {} row{} without a value (empty or NaN) skipped",
+                self.skipped,
+                if self.skipped == 1 { "" } else { "s" }
             ));
         }
         text
@@ -127,7 +252,17 @@ fn unit_words((unit, source): (Unit, UnitSource), per: &str) -> String {
 /// The tool whose export `header` looks like: Vernier Graphical Analysis
 /// prefixes each name with its run (`Latest:`, `Run 1:`), PASCO Capstone
 /// suffixes it (`Run #1`).
-fn tool_of(header: &[String]) -> Option<&'static str> {
+fn tool_of(header: &[String], preamble: &[String]) -> Option<&'static str> {
+    let bare_header: Vec<String> = header.iter().map(|h| bare(h)).collect();
+    if preamble.len() == 1 && bare_header.first().is_some_and(|h| h == "t") {
+        return Some("Tracker");
+    }
+    if header.iter().any(|h| {
+        let h = h.trim().trim_matches('"');
+        h.starts_with("Gyroscope ") || h.starts_with("Rotation ")
+    }) {
+        return Some("phyphox");
+    }
     let all = |f: &dyn Fn(&str) -> bool| header.iter().all(|h| f(h.trim().trim_matches('"')));
     let words = |h: &str| -> Vec<String> { h.split_whitespace().map(str::to_lowercase).collect() };
     if all(&|h| {
@@ -243,86 +378,399 @@ fn parse_encoder(table: &Table) -> Result<Recording, CsvError> {
     })
 }
 
-/// Parses a recording (either format; see the `import` module docs) from
-/// its table.
+/// Parses the first recording of a table (see the module docs).
 pub fn parse_table(table: &Table, opts: &ImportOptions) -> Result<Recording, CsvError> {
-    Ok(parse_table_with_layout(table, opts)?.0)
+    let mut runs = parse_runs(table, opts)?;
+    Ok(runs.swap_remove(0).0)
 }
 
-/// [`parse_table`], and what it took from the file ([`Layout`]).
-pub fn parse_table_with_layout(
+/// Every recording of a table, one a run, with what was taken from the
+/// file ([`Layout`]); at least one.
+pub fn parse_runs(
     table: &Table,
     opts: &ImportOptions,
-) -> Result<(Recording, Layout), CsvError> {
+) -> Result<Vec<(Recording, Layout)>, CsvError> {
     if table.header.first().map(|h| h.to_lowercase()).as_deref() == Some("trigger_start_deg") {
         let layout = Layout {
+            file: table.path.display().to_string(),
             tool: Some("rotary-encoder logger"),
+            run: None,
             time: None,
             angle: "one angle a line".into(),
             rate: None,
             angle_unit: (Unit::Degrees, UnitSource::Format),
             rate_unit: (Unit::Degrees, UnitSource::Format),
+            angle_from: AngleFrom::Measured,
+            skipped: 0,
+            release: None,
+            repeated: 0,
         };
-        return Ok((parse_encoder(table)?, layout));
+        return Ok(vec![(parse_encoder(table)?, layout)]);
     }
+    let (table, tool) = known_headerless(table);
+    let tool = tool.or_else(|| tool_of(&table.header, &table.preamble));
+    split_runs(&table)
+        .into_iter()
+        .map(|(run, sub)| {
+            let (rec, mut layout) = parse_run(&sub, opts)?;
+            layout.tool = tool;
+            layout.run = run;
+            layout.file = table.path.display().to_string();
+            Ok((rec, layout))
+        })
+        .collect()
+}
+
+/// [`parse_runs`] on the first run only (kept for callers of one).
+pub fn parse_table_with_layout(
+    table: &Table,
+    opts: &ImportOptions,
+) -> Result<(Recording, Layout), CsvError> {
+    let mut runs = parse_runs(table, opts)?;
+    Ok(runs.swap_remove(0))
+}
+
+/// The Phidget Spatial logger's rows, `[t, ax, ay, az, gx, gy, gz]`
+/// after its messages (which name the device), without a header: named,
+/// the rates in degrees per second as the device gives them.
+fn known_headerless(table: &Table) -> (Table, Option<&'static str>) {
+    let phidget = !table.named
+        && table.header.len() == 7
+        && table.preamble.iter().any(|l| l.to_lowercase().contains("phidget"));
+    if !phidget {
+        return (table.clone(), None);
+    }
+    let mut named = table.clone();
+    named.header = ["t (s)", "ax (g)", "ay (g)", "az (g)", "gx (°/s)", "gy (°/s)", "gz (°/s)"]
+        .map(String::from)
+        .to_vec();
+    (named, Some("Phidget Spatial logger"))
+}
+
+/// The run a header field is marked with: a prefix before a colon
+/// (`Run 1:`, `Latest:`) or a suffix `Run #1`.
+fn run_of(field: &str) -> Option<String> {
+    let f = field.trim().trim_matches('"');
+    if let Some((pre, _)) = f.split_once(':')
+        && !pre.contains(['(', '['])
+    {
+        return Some(pre.trim().to_string());
+    }
+    let words: Vec<String> = f.split_whitespace().map(str::to_string).collect();
+    let lower: Vec<String> = words.iter().map(|w| w.to_lowercase()).collect();
+    (words.len() >= 3 && is_run_suffix(&lower[lower.len() - 2..]))
+        .then(|| words[words.len() - 2..].join(" "))
+}
+
+/// The table split by run where its columns are marked with two or more
+/// (a column marked with none goes with every run); else the table as it
+/// is. A run's rows are those with a value in one of its columns.
+fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
+    let marks: Vec<Option<String>> = table.header.iter().map(|h| run_of(h)).collect();
+    let mut runs: Vec<String> = Vec::new();
+    for m in marks.iter().flatten() {
+        if !runs.contains(m) {
+            runs.push(m.clone());
+        }
+    }
+    if runs.len() < 2 {
+        return vec![(None, table.clone())];
+    }
+    runs.into_iter()
+        .map(|run| {
+            let cols: Vec<usize> = (0..table.header.len())
+                .filter(|&k| marks[k].as_ref().is_none_or(|m| *m == run))
+                .collect();
+            let pick = |fields: &[String]| -> Vec<String> {
+                cols.iter().map(|&k| fields.get(k).cloned().unwrap_or_default()).collect()
+            };
+            let rows = table
+                .rows
+                .iter()
+                .map(|r| Row {
+                    line: r.line,
+                    fields: pick(&r.fields),
+                })
+                .filter(|r| r.fields.iter().any(|f| !f.is_empty()))
+                .collect();
+            let sub = Table {
+                header: pick(&table.header),
+                rows,
+                ..table.clone()
+            };
+            (Some(run), sub)
+        })
+        .collect()
+}
+
+/// What a run's columns hold.
+enum Holds {
+    /// An angle, and a rate or not.
+    Angle { angle: usize, rate: Option<usize> },
+    /// Rates only, one column an axis.
+    Rate(Vec<usize>),
+    /// The bob's position.
+    Position { x: usize, y: usize },
+}
+
+/// The gyroscope axis a header field names: `Gyroscope x (rad/s)`,
+/// `Rotation z`, `gx`, `omega_y`, or any name ending in an axis with a
+/// rate's unit.
+fn rate_axis(field: &str) -> Option<char> {
+    let b = bare(field);
+    let axis = b.chars().last().filter(|c| matches!(c, 'x' | 'y' | 'z'))?;
+    let stem = b[..b.len() - 1].trim_end_matches('_');
+    let per_second = header_unit(field).is_some_and(|(_, per)| per);
+    let named = matches!(
+        stem,
+        "gyroscope" | "gyro" | "g" | "w" | "rotation" | "rotation_rate" | "angular_velocity" | "omega" | "rate"
+    );
+    (named || (per_second && !stem.is_empty())).then_some(axis)
+}
+
+/// What the run's columns hold, by the options and the usual names.
+fn holds(table: &Table, opts: &ImportOptions, time: Option<usize>) -> Result<Holds, CsvError> {
+    let c = &opts.columns;
+    let rate = find(table, c.rate.as_deref(), &RATE_NAMES, "rate")?;
+    if let Some(angle) = find(table, c.angle.as_deref(), &ANGLE_NAMES, "angle")? {
+        return Ok(Holds::Angle { angle, rate });
+    }
+    if let Some(k) = rate {
+        return Ok(Holds::Rate(vec![k]));
+    }
+    let axes: Vec<usize> = (0..table.header.len())
+        .filter(|&k| Some(k) != time && rate_axis(&table.header[k]).is_some())
+        .collect();
+    if !axes.is_empty() {
+        return Ok(Holds::Rate(axes));
+    }
+    // A column that only increases is a time, not a position.
+    let increasing = |k: usize| could_be(table, k).starts_with("increasing");
+    match (find(table, None, &["x"], "x")?, find(table, None, &["y"], "y")?) {
+        (Some(x), Some(y)) if !increasing(x) && !increasing(y) => Ok(Holds::Position { x, y }),
+        _ => Err(unrecognised(table)),
+    }
+}
+
+/// The error for a table with no angle, rate or position: its columns,
+/// what each could be, and the options to give.
+pub fn unrecognised(table: &Table) -> CsvError {
+    table.error(
+        0,
+        format!(
+            "no angle, rate or position column found; the columns are {}. Name them: --angle-column N for an angle, --rate-column N for a rate only (the angle is then integrated), --time-column N for the time (or --rate HZ without one); a tracked position is read from columns named x and y",
+            columns_guessed(table)
+        ),
+    )
+}
+
+/// The table's columns, each with what it could be: `1 "X" (increasing,
+/// the time?: --time-column 1), ...`.
+fn columns_guessed(table: &Table) -> String {
+    let columns: Vec<String> = table
+        .header
+        .iter()
+        .enumerate()
+        .map(|(k, h)| format!("{} {h:?} ({})", k + 1, could_be(table, k)))
+        .collect();
+    columns.join(", ")
+}
+
+/// What column `k` could be, by its name, unit and values.
+fn could_be(table: &Table, k: usize) -> String {
+    let name = bare(&table.header[k]);
+    if TIME_NAMES.contains(&name.as_str()) {
+        return format!("the time: --time-column {}", k + 1);
+    }
+    match header_unit(&table.header[k]) {
+        Some((_, true)) => return format!("a rate: --rate-column {}", k + 1),
+        Some((_, false)) => return format!("an angle: --angle-column {}", k + 1),
+        None => {}
+    }
+    let v: Vec<f64> = table
+        .rows
+        .iter()
+        .filter_map(|r| table.optional_number(r, k, "").ok().flatten())
+        .filter(|v| v.is_finite())
+        .collect();
+    if v.len() < 3 {
+        return "no numbers".into();
+    }
+    if v.windows(2).all(|w| w[1] > w[0]) {
+        return format!("increasing, the time?: --time-column {}", k + 1);
+    }
+    let mut sorted = v.clone();
+    sorted.sort_by(f64::total_cmp);
+    let (lo, mid, hi) = (sorted[0], sorted[v.len() / 2], sorted[v.len() - 1]);
+    if hi - lo <= 1e-12 * hi.abs().max(1.0) {
+        return "constant".into();
+    }
+    let band = 0.2 * (hi - lo);
+    let mut side = 0i8;
+    let mut crossings = 0;
+    for x in &v {
+        let s = if *x > mid + band { 1 } else if *x < mid - band { -1 } else { 0 };
+        if s != 0 && s != side {
+            crossings += usize::from(side != 0);
+            side = s;
+        }
+    }
+    if crossings >= 4 {
+        format!(
+            "swings: an angle, --angle-column {0}, or a rate, --rate-column {0}",
+            k + 1
+        )
+    } else {
+        "neither time nor swing".into()
+    }
+}
+
+/// One run's recording and layout (the time, then what the columns hold,
+/// then the rows read, then the angle had from them).
+fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout), CsvError> {
     let ti = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
-    let th =
-        find(table, opts.columns.angle.as_deref(), &ANGLE_NAMES, "angle")?.ok_or_else(|| {
-            table.error(
-                1,
-                format!(
-                    "no angle column (header {:?}): name it (--angle-column)",
-                    table.header.join(",")
-                ),
-            )
-        })?;
-    let td = find(table, opts.columns.rate.as_deref(), &RATE_NAMES, "rate")?;
+    let holds = holds(table, opts, ti)?;
     if ti.is_none() && opts.rate.is_none() {
         return Err(table.error(
             0,
-            "no time column: name it (--time-column) or give the sample rate (--rate)",
+            format!(
+                "no time column: name it (--time-column N) or give the sample rate (--rate HZ); the columns are {}",
+                columns_guessed(table)
+            ),
         ));
     }
-    let angle_unit = column_unit(&table.header[th], opts, (opts.unit, UnitSource::Options));
-    let rate_unit = td.map_or(angle_unit, |k| {
-        column_unit(&table.header[k], opts, angle_unit)
-    });
-    let (angle_scale, rate_scale) = (scale(angle_unit.0), scale(rate_unit.0));
-    let (mut t, mut theta, mut rate) = (Vec::new(), Vec::new(), Vec::new());
-    for row in &table.rows {
-        let time = match (ti, opts.rate) {
-            (Some(k), _) => table.number(row, k, "time")?,
-            (None, Some(r)) => theta.len() as f64 / r,
-            (None, None) => 0.0, // refused above
-        };
-        if let Some(&prev) = t.last()
-            && time <= prev
-        {
-            return Err(table.error(
-                row.line,
-                format!("time {time} does not increase (previous {prev})"),
-            ));
-        }
-        t.push(time);
-        theta.push(table.number(row, th, "angle")? * angle_scale);
-        if let Some(k) = td {
-            rate.push(table.number(row, k, "rate")? * rate_scale);
-        }
-    }
-    let recording = Recording {
-        t,
-        theta,
-        theta_dot: td.map(|_| rate),
+    let cols: Vec<usize> = match &holds {
+        Holds::Angle { angle, rate } => [Some(*angle), *rate].into_iter().flatten().collect(),
+        Holds::Rate(axes) => axes.clone(),
+        Holds::Position { x, y } => vec![*x, *y],
     };
-    let layout = Layout {
-        tool: tool_of(&table.header),
-        time: ti.map(|k| table.header[k].clone()),
-        angle: table.header[th].clone(),
-        rate: td.map(|k| table.header[k].clone()),
-        angle_unit,
-        rate_unit,
+    let (t, values, skipped, repeated) = read_rows(table, ti, &cols, opts.rate)?;
+    let header = |k: usize| table.header[k].clone();
+    let unit_of = |k: usize, fallback| column_unit(&table.header[k], opts, fallback);
+    let options_unit = (opts.unit, UnitSource::Options);
+    let mut layout = Layout {
+        file: String::new(),
+        tool: None,
+        run: None,
+        time: ti.map(header),
+        angle: String::new(),
+        rate: None,
+        angle_unit: options_unit,
+        rate_unit: options_unit,
+        angle_from: AngleFrom::Measured,
+        skipped,
+        release: None,
+        repeated,
+    };
+    let recording = match holds {
+        Holds::Angle { angle, rate } => {
+            layout.angle = header(angle);
+            layout.angle_unit = unit_of(angle, options_unit);
+            layout.rate_unit = rate.map_or(layout.angle_unit, |k| unit_of(k, layout.angle_unit));
+            layout.rate = rate.map(header);
+            let theta = values[0].iter().map(|v| v * scale(layout.angle_unit.0)).collect();
+            let rate_scale = scale(layout.rate_unit.0);
+            let theta_dot = rate.map(|_| values[1].iter().map(|v| v * rate_scale).collect());
+            Recording { t, theta, theta_dot }
+        }
+        Holds::Rate(axes) => {
+            layout.rate_unit = unit_of(axes[0], options_unit);
+            layout.angle_unit = layout.rate_unit;
+            let names: Vec<String> = axes.iter().map(|&k| header(k)).collect();
+            layout.angle = names.join("`, `");
+            let rates: Vec<Vec<f64>> = axes
+                .iter()
+                .zip(&values)
+                .map(|(&k, v)| {
+                    let s = scale(unit_of(k, options_unit).0);
+                    v.iter().map(|x| x * s).collect()
+                })
+                .collect();
+            let got = integrate(&t, &rates, &names).map_err(|e| table.error(0, e))?;
+            layout.angle_from = AngleFrom::Integrated {
+                axis: got.axis,
+                rms: got.rms,
+                window: got.window,
+            };
+            Recording {
+                t,
+                theta: got.theta,
+                theta_dot: Some(got.rate),
+            }
+        }
+        Holds::Position { x, y } => {
+            layout.angle = format!("{}`, `{}", header(x), header(y));
+            layout.angle_unit = (Unit::Radians, UnitSource::Format);
+            let got = about_pivot(&values[0], &values[1], opts.pivot).map_err(|e| table.error(0, e))?;
+            layout.angle_from = AngleFrom::Position {
+                pivot: got.pivot,
+                from: got.from,
+                radius: got.radius,
+                spread: got.spread,
+            };
+            Recording {
+                t,
+                theta: got.theta,
+                theta_dot: None,
+            }
+        }
     };
     Ok((recording, layout))
+}
+
+/// The rows' times (column `ti`, else the row's place at `rate` Hz) and
+/// the values of `cols`, skipping a row without one of them (empty or
+/// `NaN`) or whose time repeats the one before (each counted); times
+/// must not go back.
+fn read_rows(
+    table: &Table,
+    ti: Option<usize>,
+    cols: &[usize],
+    rate: Option<f64>,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize, usize), CsvError> {
+    let mut t: Vec<f64> = Vec::new();
+    let mut values = vec![Vec::new(); cols.len()];
+    let (mut skipped, mut repeated) = (0, 0);
+    for (place, row) in table.rows.iter().enumerate() {
+        let time = match (ti, rate) {
+            (Some(k), _) => table.optional_number(row, k, "time")?,
+            (None, Some(r)) => Some(place as f64 / r),
+            (None, None) => None,
+        };
+        let mut got = Vec::with_capacity(cols.len());
+        for &k in cols {
+            got.push(table.optional_number(row, k, &bare(&table.header[k]))?);
+        }
+        let (Some(time), Some(got)) = (time.filter(|v| v.is_finite()), got.into_iter().collect::<Option<Vec<f64>>>())
+        else {
+            skipped += 1;
+            continue;
+        };
+        if got.iter().any(|v| v.is_nan()) {
+            skipped += 1;
+            continue;
+        }
+        if let Some(&prev) = t.last() {
+            if time == prev {
+                repeated += 1;
+                continue;
+            }
+            if time < prev {
+                return Err(table.error(
+                    row.line,
+                    format!("time {time} goes back (previous {prev})"),
+                ));
+            }
+        }
+        t.push(time);
+        for (v, x) in values.iter_mut().zip(got) {
+            v.push(x);
+        }
+    }
+    if t.len() < 2 {
+        return Err(table.error(0, "fewer than 2 rows with values"));
+    }
+    Ok((t, values, skipped, repeated))
 }
 
 /// Parses a recording from `text`, the contents of `path`.
@@ -416,5 +864,34 @@ mod tests {
             parse_table_with_layout(&Table::parse(p, text).unwrap(), &radians).unwrap();
         assert_eq!(r.theta[0], 0.5);
         assert_eq!(layout.angle_unit, (Unit::Radians, UnitSource::Options));
+    }
+
+    /// Two runs side by side (Vernier's prefixes), the second shorter and
+    /// padded with `NaN`, a frame missing in the first: two recordings,
+    /// the padding and the gap skipped and counted.
+    #[test]
+    fn runs_side_by_side_are_read_one_by_one() {
+        let mut text = String::from("Run 1: Time (s),Run 1: Angle (rad),Run 2: Time (s),Run 2: Angle (rad)\n");
+        for k in 0..10 {
+            let t = f64::from(k) * 0.1;
+            let first = if k == 4 { String::new() } else { format!("{}", (3.0 * t).cos()) };
+            let second = if k < 6 { format!("{t},{}", 0.5 * (3.0 * t).cos()) } else { "NaN,NaN".into() };
+            text.push_str(&format!("{t},{first},{second}\n"));
+        }
+        let runs = parse_runs(&Table::parse(Path::new("v.csv"), &text).unwrap(), &ImportOptions::default()).unwrap();
+        assert_eq!(runs.len(), 2);
+        let ((one, l1), (two, l2)) = (&runs[0], &runs[1]);
+        assert_eq!((one.t.len(), l1.skipped, l1.run.as_deref()), (9, 1, Some("Run 1")));
+        assert_eq!((two.t.len(), l2.skipped, l2.run.as_deref()), (6, 4, Some("Run 2")));
+        assert_eq!(l2.tool, Some("Vernier Graphical Analysis"));
+        assert_eq!(two.theta[1], 0.5 * 0.3f64.cos());
+        // A time that goes back is an error naming the line; one repeated
+        // is skipped and counted.
+        let back = "t,theta\n0,1\n0.1,2\n0.1,2\n0.05,3\n";
+        let e = parse_runs(&Table::parse(Path::new("b.csv"), back).unwrap(), &ImportOptions::default()).unwrap_err();
+        assert!(e.to_string().starts_with("b.csv:5: time 0.05 goes back"), "{e}");
+        let twice = "t,theta\n0,1\n0.1,2\n0.1,2\n0.2,3\n";
+        let runs = parse_runs(&Table::parse(Path::new("r.csv"), twice).unwrap(), &ImportOptions::default()).unwrap();
+        assert_eq!((runs[0].0.t.len(), runs[0].1.repeated), (3, 1));
     }
 }

@@ -1,0 +1,164 @@
+//! The free swings in a recording with several releases: a rig held
+//! still, lifted by hand, let go, left to stop, and lifted again.
+//!
+//! A free swing loses amplitude every half swing; a hand adds it, and a
+//! rest has none. Steps:
+//! 1. The turning points, by hysteresis: the running extreme is a turning
+//!    point once the angle has come back from it by [`HYSTERESIS`] of the
+//!    recording's span.
+//! 2. Each half swing (between two turning points) is free where it lasts
+//!    between 0.3 and 0.8 of the median swing's period, spans at least
+//!    [`FLOOR`] of the largest half swing, and is at most [`GROWTH`] times
+//!    the one before it.
+//! 3. A release is a run of at least [`MIN_HALVES`] free half swings, from
+//!    the turning point it is let go at to the last one.
+//!
+//! The recording is split only where it holds a rest or a hand's motion
+//! outside its releases: a half swing slower than a swing's, or a still
+//! start or end of over [`MIN_OTHER`] swing periods. A recording that is
+//! one free swing from start to end stays whole, and so does one whose
+//! swing a tracker's glitches break (the caller leaves the glitches out
+//! first).
+
+use std::ops::Range;
+
+/// The hysteresis, as a fraction of the recording's span of angles.
+pub const HYSTERESIS: f64 = 0.02;
+/// The least half swing of a release, as a fraction of the largest.
+pub const FLOOR: f64 = 0.03;
+/// The most a free half swing grows over the one before (noise).
+pub const GROWTH: f64 = 1.15;
+/// The fewest half swings a release holds.
+pub const MIN_HALVES: usize = 8;
+/// The most a release's last half swing keeps of its first: a swing
+/// kept up (driven, or moved by hand) is no free one.
+pub const DECAY: f64 = 0.7;
+/// Swing periods of rest or hand outside the one release that split it off.
+pub const MIN_OTHER: f64 = 2.0;
+
+/// The samples of each release, where the recording `(t, theta)` is to be
+/// split (see the module docs); `None` to keep it whole.
+pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
+    let turns = turning_points(theta);
+    if turns.len() < MIN_HALVES + 1 {
+        return None;
+    }
+    let halves: Vec<(f64, f64)> = turns
+        .windows(2)
+        .map(|w| (t[w[1]] - t[w[0]], (theta[w[1]] - theta[w[0]]).abs()))
+        .collect();
+    let largest = halves.iter().map(|h| h.1).fold(0.0, f64::max);
+    let mut durations: Vec<f64> = halves
+        .iter()
+        .filter(|h| h.1 >= 0.2 * largest)
+        .map(|h| h.0)
+        .collect();
+    durations.sort_by(f64::total_cmp);
+    let period = 2.0 * *durations.get(durations.len() / 2)?;
+    let fits = |d: f64| (0.3 * period..=0.8 * period).contains(&d);
+    let free: Vec<bool> = halves
+        .iter()
+        .enumerate()
+        .map(|(k, &(d, a))| {
+            // Grown over a half swing before it (a hand's lift lasts longer).
+            let grows = k > 0 && fits(halves[k - 1].0) && a > GROWTH * halves[k - 1].1;
+            fits(d) && a >= FLOOR * largest && !grows
+        })
+        .collect();
+    let mut runs: Vec<Range<usize>> = Vec::new();
+    let mut from = None;
+    for k in 0..=free.len() {
+        match (free.get(k).copied().unwrap_or(false), from) {
+            (true, None) => from = Some(k),
+            (false, Some(f)) => {
+                let decays = halves[k - 1].1 <= DECAY * halves[f].1;
+                if k - f >= MIN_HALVES && decays {
+                    runs.push(turns[f]..turns[k] + 1);
+                }
+                from = None;
+            }
+            _ => {}
+        }
+    }
+    // A rest or a hand: a half swing outside the releases slower than a
+    // swing's, or a still start or end of over MIN_OTHER periods.
+    let inside = |k: usize| runs.iter().any(|r| r.contains(&turns[k]) && r.contains(&turns[k + 1]));
+    let slow = (0..halves.len()).any(|k| !inside(k) && halves[k].0 > 0.8 * period);
+    let still_ends = t[turns[0]] - t[0] > MIN_OTHER * period
+        || t[t.len() - 1] - t[turns[turns.len() - 1]] > MIN_OTHER * period;
+    (!runs.is_empty() && (slow || still_ends)).then_some(runs)
+}
+
+/// The turning points of `theta` by hysteresis (see the module docs).
+fn turning_points(theta: &[f64]) -> Vec<usize> {
+    let (lo, hi) = theta
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let h = HYSTERESIS * (hi - lo);
+    let mut turns = Vec::new();
+    // The running extreme and its direction (+1 rising, -1 falling, 0 not yet).
+    let (mut at, mut dir) = (0usize, 0i8);
+    for (k, &v) in theta.iter().enumerate() {
+        let best = theta[at];
+        match dir {
+            0 => {
+                if v > best + h {
+                    dir = 1;
+                    at = k;
+                } else if v < best - h {
+                    dir = -1;
+                    at = k;
+                }
+            }
+            1 if v > best => at = k,
+            1 if v < best - h => {
+                turns.push(at);
+                dir = -1;
+                at = k;
+            }
+            -1 if v < best => at = k,
+            -1 if v > best + h => {
+                turns.push(at);
+                dir = 1;
+                at = k;
+            }
+            _ => {}
+        }
+    }
+    turns
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rest 5 s, a hand lifting the bob for 2 s, a release at 1.2 rad that
+    /// decays to rest over 30 s, rest, and another release: two releases,
+    /// each from its first turning point to near its end; one free swing
+    /// alone stays whole.
+    #[test]
+    fn releases_are_found_and_one_swing_stays_whole() {
+        let w = 2.0 * std::f64::consts::PI;
+        let h = 0.01;
+        let swing = |s: f64| 1.2 * (-s / 8.0).exp() * (w * s).cos();
+        let theta_at = |s: f64| -> f64 {
+            match s {
+                s if s < 5.0 => 0.0,
+                s if s < 7.0 => 1.2 * (s - 5.0) / 2.0,
+                s if s < 37.0 => swing(s - 7.0),
+                s if s < 45.0 => 0.0,
+                s if s < 47.0 => 1.2 * (s - 45.0) / 2.0,
+                s => swing(s - 47.0),
+            }
+        };
+        let t: Vec<f64> = (0..8000).map(|k| k as f64 * h).collect();
+        let theta: Vec<f64> = t.iter().map(|&s| theta_at(s)).collect();
+        let got = releases(&t, &theta).unwrap();
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert!((t[got[0].start] - 7.0).abs() < 0.05, "{}", t[got[0].start]);
+        assert!((t[got[1].start] - 47.0).abs() < 0.05, "{}", t[got[1].start]);
+        assert!(t[got[0].end - 1] > 30.0 && t[got[0].end - 1] < 37.0);
+        let alone: Vec<f64> = t.iter().map(|&s| swing(s)).collect();
+        assert!(releases(&t[..3000], &alone[..3000]).is_none());
+    }
+}
