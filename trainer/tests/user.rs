@@ -390,3 +390,72 @@ fn a_bilinear_blob_for_a_string_trains_exports_and_estimates() {
     );
     assert!(check.contains("| all | 6 |"), "{check}");
 }
+
+/// `estimate --follow -`: a Vernier-like recording (50 Hz, degrees, a
+/// little noise) written into the pipe line by line, with pauses; the
+/// estimates printed every 100 measurements equal `estimate`'s on the
+/// same file imported by `import` with the same options, at the same
+/// steps (`--steps`), and it exits 0 at the end of the input.
+#[test]
+fn follow_prints_what_estimate_prints_at_the_same_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("\"Latest: Time (s)\",\"Latest: Angle (°)\"\n");
+    for k in 0..1500 {
+        let t = f64::from(k) * 0.02;
+        let a = 30.0 * (-t / 25.0).exp() * (4.0 * t).cos() + 0.03 * (f64::from(k) * 7.1).sin();
+        text.push_str(&format!("{t:.2},{a:.3}\n"));
+    }
+    let raw = dir.path().join("raw.csv");
+    std::fs::write(&raw, &text).unwrap();
+    let weights = root().join("weights/rig.kkf");
+    let imported = dir.path().join("imported.csv");
+    run_ok(
+        koopman()
+            .args(["import", "--dt", "0.04", "--smooth", "0.06", "--out"])
+            .arg(&imported)
+            .arg(&raw),
+    );
+    let mut child = koopman()
+        .args(["estimate", "--json", "--g", "9.81", "--follow", "-", "--every", "100", "--smooth", "0.06", "--weights"])
+        .arg(&weights)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    for (k, line) in text.lines().enumerate() {
+        use std::io::Write;
+        writeln!(stdin, "{line}").unwrap();
+        if k % 300 == 0 {
+            stdin.flush().unwrap();
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    }
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let printed: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // 750 measurements at 0.04 s: every 100, and the last.
+    let steps: Vec<u64> = printed.iter().map(|v| v["steps"].as_u64().unwrap()).collect();
+    assert_eq!(steps, [100, 200, 300, 400, 500, 600, 700, 750]);
+    for v in &printed {
+        let n = v["steps"].as_u64().unwrap().to_string();
+        let want: serde_json::Value = serde_json::from_str(
+            run_ok(
+                koopman()
+                    .args(["estimate", "--json", "--g", "9.81", "--steps", &n, "--weights"])
+                    .arg(&weights)
+                    .arg(&imported),
+            )
+            .trim(),
+        )
+        .unwrap();
+        for key in ["params", "param_std", "trust", "trust_reasons", "offset", "offset_std", "sigma"] {
+            assert_eq!(v[key], want[key], "{key} at {n} steps");
+        }
+    }
+}

@@ -20,13 +20,29 @@ pub struct Args {
     /// sidecar records how `koopman import` found each recording sampled,
     /// the estimator is told the source's own interval and the glitches
     /// the import dropped are shown.
-    data: PathBuf,
+    #[arg(required_unless_present = "follow", conflicts_with = "follow")]
+    data: Option<PathBuf>,
+    /// Read a recording as it is written, a file (followed until it has not
+    /// grown for --idle seconds, or Ctrl-C) or `-` (standard input, to its
+    /// end): its raw columns imported on the fly at the blob's interval with
+    /// the options of `import`, the estimate printed every --every
+    /// measurements and at the end.
+    #[arg(long, value_name = "FILE|-")]
+    pub(super) follow: Option<PathBuf>,
+    /// With --follow: print the estimate every N measurements.
+    #[arg(long, default_value_t = 25, value_parser = clap::value_parser!(u64).range(1..))]
+    pub(super) every: u64,
+    /// With --follow on a file: end once it has not grown for S seconds.
+    #[arg(long, default_value_t = 10.0)]
+    pub(super) idle: f64,
+    #[command(flatten)]
+    pub(super) recording: super::RecordingArgs,
     /// Use only the first N measurements of each rollout (all when absent).
     #[arg(long)]
     steps: Option<usize>,
     /// One JSON object per rollout and line.
     #[arg(long)]
-    json: bool,
+    pub(super) json: bool,
     /// Gravity of the rig, m/s^2: the motion tells `g / L` only, so the
     /// length is reported for this g. Not given, the length is read at the
     /// weights' training gravity (which the blob records) and the verdict
@@ -41,21 +57,37 @@ pub struct Args {
     plot: Option<PathBuf>,
 }
 
+impl Args {
+    /// The input: the data, or what --follow reads.
+    fn input(&self) -> &Path {
+        self.data
+            .as_deref()
+            .or(self.follow.as_deref())
+            .unwrap_or(Path::new("-"))
+    }
+}
+
 /// Runs it.
 pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
-    let ds = data::read(&a.data, 2)?;
-    let sources = data::read_sources(&a.data)?;
-    let dt = f64::from(model.blob().body.dt);
     let fresh = match a.g {
         Some(g) => Estimator::new(&model)
             .with_gravity(g)
             .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?,
         None => Estimator::new(&model),
     };
+    if let Some(source) = &a.follow {
+        return super::follow::run(&a, source, &model, &fresh);
+    }
+    let Some(path) = &a.data else {
+        anyhow::bail!("give the data (a project CSV) or --follow FILE|-");
+    };
+    let ds = data::read(path, 2)?;
+    let sources = data::read_sources(path)?;
+    let dt = f64::from(model.blob().body.dt);
     data::check_interval_with(&ds, dt, true)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     if let Some(dir) = &a.plot {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("{}: cannot create: {e}", dir.display()))?;
@@ -73,7 +105,7 @@ pub fn run(a: Args) -> Result<()> {
                 steps.push((t, o.clone()));
             }
         })
-        .map_err(|e| anyhow::anyhow!("{}: {e}", a.data.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         if let Some(dir) = &a.plot {
             report.plot(dir, r, steps)?;
         }
@@ -87,7 +119,7 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// What every rollout's report reads: the arguments and the blob.
-struct Report<'a> {
+pub(super) struct Report<'a> {
     a: &'a Args,
     body: Body<'a>,
     names: Vec<&'a str>,
@@ -98,7 +130,7 @@ struct Report<'a> {
 }
 
 impl<'a> Report<'a> {
-    fn of(a: &'a Args, body: Body<'a>, sources: bool) -> Self {
+    pub(super) fn of(a: &'a Args, body: Body<'a>, sources: bool) -> Self {
         let names: Vec<&str> = body.params.iter().map(|p| p.name).collect();
         let effect_label = body.params[1]
             .declared
@@ -113,7 +145,7 @@ impl<'a> Report<'a> {
     }
 
     /// The text table's heading.
-    fn header(&self) -> Result<()> {
+    pub(super) fn header(&self) -> Result<()> {
         let effect_head = self
             .effect_label
             .as_ref()
@@ -136,7 +168,7 @@ impl<'a> Report<'a> {
 
     /// `fresh`, told the source's own interval where the sidecar records
     /// it for rollout `id`.
-    fn estimator<'m>(
+    pub(super) fn estimator<'m>(
         &self,
         fresh: &Estimator<'m>,
         id: u32,
@@ -151,7 +183,7 @@ impl<'a> Report<'a> {
             .map_err(|e| {
                 anyhow::anyhow!(
                     "{}: rollout {id}: source interval {} s: {e}",
-                    self.a.data.display(),
+                    self.a.input().display(),
                     s.median_interval
                 )
             })
@@ -172,7 +204,7 @@ impl<'a> Report<'a> {
             &Trace {
                 title: format!(
                     "{} rollout {} with {} ({g_note})",
-                    a.data.display(),
+                    a.input().display(),
                     r.id,
                     a.weights.display()
                 ),
@@ -185,7 +217,7 @@ impl<'a> Report<'a> {
     }
 
     /// The rollout's line of `--json`.
-    fn json(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+    pub(super) fn json(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
         let (a, body, rig) = (self.a, &self.body, self.body.rig);
         let (out, n) = (&tracked.out, tracked.measured);
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
@@ -208,7 +240,7 @@ impl<'a> Report<'a> {
     }
 
     /// The rollout's row of the text table, and its notes.
-    fn text(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+    pub(super) fn text(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
         let (out, n) = (&tracked.out, tracked.measured);
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         let effect_cols = self.effect_label.as_ref().map_or(String::new(), |_| {

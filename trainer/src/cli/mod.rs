@@ -15,6 +15,7 @@ pub mod diagnose;
 pub mod estimate;
 pub mod evaluate;
 pub mod export;
+pub mod follow;
 pub mod generate;
 pub mod import;
 pub mod lab_check;

@@ -122,7 +122,7 @@ fn parse_number(field: &str, sep: u8) -> Option<f64> {
 
 /// Whether `fields` is a data row: two or more fields, each a number,
 /// `NaN` or empty, at least two of them finite numbers.
-fn is_data(fields: &[String], sep: u8) -> bool {
+pub(crate) fn is_data(fields: &[String], sep: u8) -> bool {
     let numbers = fields
         .iter()
         .filter(|f| parse_number(f, sep).is_some_and(f64::is_finite))
@@ -203,6 +203,14 @@ impl Table {
             rows,
             separator: sep,
         })
+    }
+
+    /// A further line of this table's file (at 1-based `line`) as a row,
+    /// `None` where it is blank.
+    pub fn row(&self, line: usize, text_line: &str) -> Result<Option<Row>, CsvError> {
+        Ok(fields(text_line, self.separator)
+            .map_err(|e| self.error(line, format!("unreadable: {e}")))?
+            .map(|fields| Row { line, fields }))
     }
 
     /// Reads and parses the file at `path`.

@@ -19,7 +19,7 @@ pub(super) fn smooth_and_rate(
         .unwrap_or(0.01);
     if uniform(t) {
         let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-        differentiate(theta, h, (smooth / h).round().max(1.0) as usize)
+        savitzky_golay(theta, (smooth / h).round().max(1.0) as usize, |k| t[k])
     } else {
         differentiate_uneven(t, theta, smooth.max(step))
     }
@@ -28,6 +28,13 @@ pub(super) fn smooth_and_rate(
 /// The smoothing differentiator (the `import` module docs) with half-width
 /// `m` samples on a uniform grid of step `h`: `(smoothed theta, theta_dot)`.
 pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
+    savitzky_golay(theta, m, |k| k as f64 * h)
+}
+
+/// [`differentiate`] with sample `k` at `time(k)` (even stamps): each
+/// window's step is its own span over its width, so that a stretch of a
+/// recording gives the same as the whole (`estimate --follow`).
+fn savitzky_golay(theta: &[f64], m: usize, time: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
     let n = theta.len();
     let mut smooth = Vec::with_capacity(n);
     let mut rate = Vec::with_capacity(n);
@@ -60,7 +67,7 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
             // the noise over one step: at 100 Hz, a hundred times it).
             let width = (2 * m + 1).min(n);
             let a = i.saturating_sub(m).min(n - width);
-            let (c0, c1) = quadratic_at(|k| k as f64 * h, theta, a, a + width - 1, i);
+            let (c0, c1) = quadratic_at(|k| time(k) - time(i), theta, a, a + width - 1, i);
             // The smoothed angle here too, in place of the centred one.
             if let Some(v) = smooth.last_mut() {
                 *v = c0;
@@ -70,18 +77,19 @@ pub fn differentiate(theta: &[f64], h: f64, m: usize) -> (Vec<f64>, Vec<f64>) {
         }
         if w == 0 {
             // Fewer than three samples: a one-sided difference.
-            let d = if i == 0 {
-                theta.get(1).map_or(0.0, |b| b - theta[0])
+            let (d, h) = if i == 0 {
+                (theta.get(1).map_or(0.0, |b| b - theta[0]), time(1) - time(0))
             } else {
-                theta[i] - theta[i - 1]
+                (theta[i] - theta[i - 1], time(i) - time(i - 1))
             };
-            rate.push(d / h);
+            rate.push(if h > 0.0 { d / h } else { 0.0 });
             continue;
         }
         let num: f64 = (1..=w)
             .map(|k| k as f64 * (theta[i + k] - theta[i - k]))
             .sum();
         let den: f64 = (1..=w).map(|k| 2.0 * (k * k) as f64).sum();
+        let h = (time(i + w) - time(i - w)) / (2 * w) as f64;
         rate.push(num / (den * h));
     }
     (smooth, rate)

@@ -54,6 +54,7 @@ mod rate_only;
 mod read;
 mod releases;
 mod resample;
+mod stream;
 #[cfg(test)]
 mod tool_exports;
 
@@ -64,6 +65,7 @@ pub use archive::read_tables;
 pub use position::{PivotFrom, Pivoted, about_pivot};
 pub use rate_only::{Integrated, integrate};
 pub use releases::releases;
+pub use stream::Stream;
 pub use read::{
     AngleFrom, Layout, UnitSource, parse, parse_runs, parse_table, parse_table_with_layout,
     unrecognised,
@@ -187,6 +189,17 @@ pub fn to_rollout_with_source(
     opts: &ImportOptions,
 ) -> Result<(Rollout, SourceMeta)> {
     checks::check_import(rec, opts)?;
+    rollout_on_grid(rec, id, opts, rec.t[0])
+}
+
+/// [`to_rollout_with_source`] without the checks, on the grid
+/// `origin + start + k dt` (a stream's first stamp, for a part of it).
+pub(crate) fn rollout_on_grid(
+    rec: &Recording,
+    id: u32,
+    opts: &ImportOptions,
+    origin: f64,
+) -> Result<(Rollout, SourceMeta)> {
     let step = resample::median_step(&rec.t);
     let ranges = resample::split_at_gaps(rec, step, opts.dt)?;
     let mut dropped = 0;
@@ -213,7 +226,7 @@ pub fn to_rollout_with_source(
             Part { t, theta, rate }
         })
         .collect();
-    let ends = (rec.t[0], rec.t[rec.t.len() - 1]);
+    let ends = (origin, rec.t[rec.t.len() - 1]);
     let grid = resample::onto_grid(&parts, ends, opts)?;
     let source = SourceMeta {
         rollout: id,

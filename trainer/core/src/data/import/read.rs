@@ -664,10 +664,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     };
     let recording = match holds {
         Holds::Angle { angle, rate } => {
-            layout.angle = header(angle);
-            layout.angle_unit = unit_of(angle, options_unit);
-            layout.rate_unit = rate.map_or(layout.angle_unit, |k| unit_of(k, layout.angle_unit));
-            layout.rate = rate.map(header);
+            angle_layout(table, opts, angle, rate, &mut layout);
             let theta = values[0].iter().map(|v| v * scale(layout.angle_unit.0)).collect();
             let rate_scale = scale(layout.rate_unit.0);
             let theta_dot = rate.map(|_| values[1].iter().map(|v| v * rate_scale).collect());
@@ -716,6 +713,75 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
         }
     };
     Ok((recording, layout))
+}
+
+/// The angle's and the rate's columns and units into `layout`.
+fn angle_layout(
+    table: &Table,
+    opts: &ImportOptions,
+    angle: usize,
+    rate: Option<usize>,
+    layout: &mut Layout,
+) {
+    let unit_of = |k: usize, fallback| column_unit(&table.header[k], opts, fallback);
+    layout.angle = table.header[angle].clone();
+    layout.angle_unit = unit_of(angle, (opts.unit, UnitSource::Options));
+    layout.rate_unit = rate.map_or(layout.angle_unit, |k| unit_of(k, layout.angle_unit));
+    layout.rate = rate.map(|k| table.header[k].clone());
+}
+
+/// The columns a recording read as it is written is taken from: the time,
+/// the angle and the rate, with the radians per unit of each.
+#[derive(Debug, Clone)]
+pub(crate) struct StreamColumns {
+    /// The time column (`None`: the sample rate gives the times).
+    pub time: Option<usize>,
+    /// The angle column and its radians per unit.
+    pub angle: (usize, f64),
+    /// The rate column and its radians per unit, if one.
+    pub rate: Option<(usize, f64)>,
+    /// What was taken, for the user.
+    pub layout: Layout,
+}
+
+/// The columns of a table (its header and first rows) read as it is
+/// written: an angle column is needed (a rate only or a position is read
+/// from the whole recording, by `import`).
+pub(crate) fn stream_columns(table: &Table, opts: &ImportOptions) -> Result<StreamColumns, CsvError> {
+    let time = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
+    let (angle, rate) = match holds(table, opts, time)? {
+        Holds::Angle { angle, rate } => (angle, rate),
+        Holds::Rate(_) | Holds::Position { .. } => {
+            return Err(table.error(
+                0,
+                "a rate only or a position is read from the whole recording: import it first (`koopman import`), then estimate",
+            ));
+        }
+    };
+    if time.is_none() && opts.rate.is_none() {
+        return Err(table.error(0, "no time column: name it (--time-column N) or give the sample rate (--rate HZ)"));
+    }
+    let mut layout = Layout {
+        file: table.path.display().to_string(),
+        tool: tool_of(&table.header, &table.preamble),
+        run: None,
+        time: time.map(|k| table.header[k].clone()),
+        angle: String::new(),
+        rate: None,
+        angle_unit: (opts.unit, UnitSource::Options),
+        rate_unit: (opts.unit, UnitSource::Options),
+        angle_from: AngleFrom::Measured,
+        skipped: 0,
+        release: None,
+        repeated: 0,
+    };
+    angle_layout(table, opts, angle, rate, &mut layout);
+    Ok(StreamColumns {
+        time,
+        angle: (angle, scale(layout.angle_unit.0)),
+        rate: rate.map(|k| (k, scale(layout.rate_unit.0))),
+        layout,
+    })
 }
 
 /// The rows' times (column `ti`, else the row's place at `rate` Hz) and

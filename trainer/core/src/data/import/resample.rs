@@ -94,7 +94,10 @@ pub(super) fn onto_grid(
     let mut t = Vec::with_capacity(n);
     let mut xs = Vec::with_capacity(n);
     let mut interpolated = false;
-    for k in 0..n {
+    // From the first grid point the parts reach (a stream's part starts
+    // late on its grid).
+    let from = ((parts[0].t[0] - t0) / opts.dt - 1e-6).ceil().max(0.0) as usize;
+    for k in from..n {
         let at = t0 + k as f64 * opts.dt;
         // The part this grid point lies in (none: it is inside a gap).
         let Some(p) = parts

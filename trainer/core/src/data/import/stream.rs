@@ -1,0 +1,285 @@
+//! A recording imported as it is written (`koopman estimate --follow`):
+//! lines in, samples on the model's grid out, each as `import` makes it.
+//!
+//! Steps, per line: until the first data row the lines are the preamble
+//! and the header (read as [`Table::parse`] reads a file); from it the
+//! columns are taken ([`super::read::stream_columns`]: an angle, a rate or
+//! not); each row is read as `import` reads it (a row without a value or
+//! with a repeated time skipped, a time that goes back an error). Every
+//! [`BATCH`] rows the rows held are imported as one recording on the grid
+//! of the first time stamp ([`super::rollout_on_grid`]), and the grid's
+//! samples that lie more than a margin before the last row are given out:
+//! there, nothing later can change them (the glitch test's neighbours, the
+//! differentiator's window), so they equal the samples `import` makes of
+//! the whole file. The rows older than two margins are let go. At the end
+//! of the input the rest is given out.
+//!
+//! Where the rate is derived, `import` takes the differentiator's window
+//! from the whole recording's period; a stream takes it from its first
+//! [`PERIODS_FOR_WINDOW`] swing periods (or `--smooth`, which makes both
+//! the same), and says which.
+
+use anyhow::Result;
+
+use super::read::{Layout, StreamColumns, stream_columns};
+use super::{ImportOptions, Recording, rollout_on_grid, rough_period};
+use crate::data::SourceMeta;
+use crate::data::table::{Table, is_data};
+
+/// Rows read between imports.
+pub const BATCH: usize = 64;
+/// Rows before the last one a sample waits for (the glitch test's
+/// neighbours over its rounds), beside the differentiator's window.
+pub const MARGIN_ROWS: usize = 96;
+/// Swing periods read before the differentiator's window is fixed.
+pub const PERIODS_FOR_WINDOW: f64 = 4.0;
+
+/// A recording read line by line (see the module docs).
+pub struct Stream {
+    opts: ImportOptions,
+    /// The lines before the first data row, as the file has them.
+    head: String,
+    /// Lines read.
+    lines: usize,
+    /// The header, once found (no rows kept in it).
+    table: Option<Table>,
+    columns: Option<StreamColumns>,
+    /// The rows held, read.
+    rec: Recording,
+    /// The first time stamp: the grid's origin.
+    origin: Option<f64>,
+    /// The next grid point to give out.
+    next: usize,
+    /// Rows read since the last import.
+    pending: usize,
+    /// Rows read in all (for the times of a file without a time column).
+    rows: usize,
+    /// Rows skipped (no value, or a repeated time).
+    skipped: usize,
+    /// The last source record of an import.
+    source: Option<SourceMeta>,
+}
+
+impl Stream {
+    /// A stream imported with `opts` (its `dt` the model's).
+    pub fn new(opts: ImportOptions) -> Self {
+        Stream {
+            opts,
+            head: String::new(),
+            lines: 0,
+            table: None,
+            columns: None,
+            rec: Recording {
+                t: Vec::new(),
+                theta: Vec::new(),
+                theta_dot: None,
+            },
+            origin: None,
+            next: 0,
+            pending: 0,
+            rows: 0,
+            skipped: 0,
+            source: None,
+        }
+    }
+
+    /// What was taken from the header, once it is read.
+    pub fn layout(&self) -> Option<&Layout> {
+        self.columns.as_ref().map(|c| &c.layout)
+    }
+
+    /// How the rows so far were sampled (their median interval and
+    /// largest gap, the glitches of the rows held), after a first import.
+    pub fn source(&self) -> Option<&SourceMeta> {
+        self.source.as_ref()
+    }
+
+    /// The differentiator's half-window, s, where the rate is derived and
+    /// it is fixed.
+    pub fn smooth(&self) -> Option<f64> {
+        self.opts.smooth
+    }
+
+    /// Reads one line; the grid samples it settles, `(t, [theta,
+    /// theta_dot])` with `t` from the first stamp.
+    pub fn push(&mut self, text_line: &str) -> Result<Vec<(f64, [f64; 2])>> {
+        self.lines += 1;
+        let Some(table) = &self.table else {
+            self.head.push_str(text_line);
+            self.head.push('\n');
+            return self.try_header();
+        };
+        if let Some(row) = table.row(self.lines, text_line)? {
+            self.take(&row)?;
+        }
+        self.pending += 1;
+        if self.pending >= BATCH {
+            return self.settle(false);
+        }
+        Ok(Vec::new())
+    }
+
+    /// The end of the input: the samples left.
+    pub fn finish(&mut self) -> Result<Vec<(f64, [f64; 2])>> {
+        anyhow::ensure!(self.columns.is_some(), "the input ended before its first data row");
+        self.settle(true)
+    }
+
+    /// The header and the first rows, once a data row has come.
+    fn try_header(&mut self) -> Result<Vec<(f64, [f64; 2])>> {
+        let table = Table::parse(std::path::Path::new("-"), &self.head)?;
+        let Some(first) = table.rows.first() else {
+            return Ok(Vec::new());
+        };
+        if !is_data(&first.fields, table.separator) {
+            return Ok(Vec::new());
+        }
+        let columns = stream_columns(&table, &self.opts)?;
+        self.rec.theta_dot = columns.rate.map(|_| Vec::new());
+        self.columns = Some(columns);
+        let rows = table.rows.clone();
+        self.table = Some(Table {
+            rows: Vec::new(),
+            ..table
+        });
+        for row in &rows {
+            self.take(row)?;
+        }
+        Ok(Vec::new())
+    }
+
+    /// A row read into the recording, as `import` reads it.
+    fn take(&mut self, row: &crate::data::table::Row) -> Result<()> {
+        let (Some(table), Some(c)) = (&self.table, &self.columns) else {
+            return Ok(());
+        };
+        let place = self.rows;
+        self.rows += 1;
+        let time = match (c.time, self.opts.rate) {
+            (Some(k), _) => table.optional_number(row, k, "time")?,
+            (None, Some(r)) => Some(place as f64 / r),
+            (None, None) => None,
+        };
+        let angle = table.optional_number(row, c.angle.0, "angle")?;
+        let rate = match c.rate {
+            Some((k, _)) => table.optional_number(row, k, "rate")?.map(Some),
+            None => Some(None),
+        };
+        let (Some(time), Some(angle), Some(rate)) = (time, angle, rate) else {
+            self.skipped += 1;
+            return Ok(());
+        };
+        if !time.is_finite() || angle.is_nan() || rate.is_some_and(f64::is_nan) {
+            self.skipped += 1;
+            return Ok(());
+        }
+        if let Some(&prev) = self.rec.t.last() {
+            if time == prev {
+                self.skipped += 1;
+                return Ok(());
+            }
+            anyhow::ensure!(
+                time > prev,
+                "{}",
+                table.error(row.line, format!("time {time} goes back (previous {prev})"))
+            );
+        }
+        self.origin.get_or_insert(time);
+        self.rec.t.push(time);
+        self.rec.theta.push(angle * c.angle.1);
+        if let (Some(v), Some(r), Some((_, s))) = (&mut self.rec.theta_dot, rate, c.rate) {
+            v.push(r * s);
+        }
+        Ok(())
+    }
+
+    /// Imports the rows held and gives out the settled samples (all at
+    /// the end).
+    fn settle(&mut self, end: bool) -> Result<Vec<(f64, [f64; 2])>> {
+        self.pending = 0;
+        let (Some(origin), n) = (self.origin, self.rec.t.len()) else {
+            return Ok(Vec::new());
+        };
+        if n < 3 || (!end && n <= MARGIN_ROWS) {
+            return Ok(Vec::new());
+        }
+        if self.rec.theta_dot.is_none() && self.opts.smooth.is_none() {
+            match self.window(end) {
+                Some(w) => self.opts.smooth = Some(w),
+                None => return Ok(Vec::new()),
+            }
+        }
+        let (rollout, source) = rollout_on_grid(&self.rec, 1, &self.opts, origin)?;
+        self.source = Some(source);
+        let step = self.source.as_ref().map_or(self.opts.dt, |s| s.median_interval);
+        let margin = MARGIN_ROWS as f64 * step + self.opts.smooth.unwrap_or(0.0);
+        let until = if end { f64::INFINITY } else { self.rec.t[n - 1] - margin - origin };
+        let dt = self.opts.dt;
+        let mut out = Vec::new();
+        for (t, x) in rollout.t.iter().zip(&rollout.xs) {
+            let k = (t / dt).round() as usize;
+            if k >= self.next && *t <= until {
+                out.push((*t, *x));
+                self.next = k + 1;
+            }
+        }
+        // Let go of the rows no later sample needs.
+        let keep_from = origin + self.next as f64 * dt - 2.0 * margin;
+        let drop = self.rec.t.partition_point(|&t| t < keep_from);
+        if drop > 0 && n - drop > MARGIN_ROWS {
+            self.rec.t.drain(..drop);
+            self.rec.theta.drain(..drop);
+            if let Some(v) = &mut self.rec.theta_dot {
+                v.drain(..drop);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The differentiator's half-window, a twentieth of the swing's period
+    /// as `import` takes it, once [`PERIODS_FOR_WINDOW`] periods are read
+    /// (or at the end, from what there is).
+    fn window(&self, end: bool) -> Option<f64> {
+        let period = rough_period(&self.rec.t, &self.rec.theta)?;
+        let span = self.rec.t[self.rec.t.len() - 1] - self.rec.t[0];
+        (end || span >= PERIODS_FOR_WINDOW * period).then_some(period / 20.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A Vernier-like file at 50 Hz fed a line at a time gives out, by
+    /// its end, the very samples `import` makes of the whole file (the
+    /// differentiator's window given to both).
+    #[test]
+    fn a_stream_gives_what_import_gives() {
+        let mut text = String::from("\"Latest: Time (s)\",\"Latest: Angle (°)\"\n");
+        for k in 0..1500 {
+            let t = f64::from(k) * 0.02;
+            let a = 30.0 * (-t / 20.0).exp() * (4.0 * t).cos() + 0.03 * (f64::from(k) * 7.1).sin();
+            text.push_str(&format!("{t:.2},{a:.3}\n"));
+        }
+        let opts = ImportOptions {
+            dt: 0.04,
+            smooth: Some(0.06),
+            ..ImportOptions::default()
+        };
+        let path = std::env::temp_dir().join(format!("koopman-stream-{}.csv", std::process::id()));
+        std::fs::write(&path, &text).unwrap();
+        let (ds, _, _) = super::super::import_with_layouts(&[path.clone()], &opts).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let want = ds.rollouts[0].clone();
+        let mut stream = Stream::new(opts);
+        let mut got = Vec::new();
+        for line in text.lines() {
+            got.extend(stream.push(line).unwrap());
+        }
+        got.extend(stream.finish().unwrap());
+        assert_eq!(got.len(), want.xs.len());
+        for (k, ((t, x), (tw, xw))) in got.iter().zip(want.t.iter().zip(&want.xs)).enumerate() {
+            assert_eq!((t, x), (tw, xw), "sample {k}");
+        }
+    }
+}
