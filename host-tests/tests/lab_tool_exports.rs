@@ -103,7 +103,12 @@ fn assert_within_2(path: &PathBuf, lengths: &[f64]) -> Vec<import::Layout> {
     assert_eq!(got.len(), lengths.len(), "{}", path.display());
     for ((l, layout), want) in got.iter().zip(lengths) {
         let e = l / want - 1.0;
-        eprintln!("{}: {l:.4} m for {want} m ({:+.2}%): {}", path.display(), 100.0 * e, layout.describe());
+        eprintln!(
+            "{}: {l:.4} m for {want} m ({:+.2}%): {}",
+            path.display(),
+            100.0 * e,
+            layout.describe()
+        );
         assert!(e.abs() <= 0.02, "{}: {l} for {want}", path.display());
     }
     got.into_iter().map(|g| g.1).collect()
@@ -128,7 +133,14 @@ fn phyphox_gyroscope(s: &Swing, rng: &mut ChaCha8Rng) -> String {
             x[1] * tilt.cos() + 0.01 + 0.005 * normal(rng),
         ];
         let abs = w.iter().map(|v| v * v).sum::<f64>().sqrt();
-        text.push_str(&format!("{},{},{},{},{}\n", sci(*t), sci(w[0]), sci(w[1]), sci(w[2]), sci(abs)));
+        text.push_str(&format!(
+            "{},{},{},{},{}\n",
+            sci(*t),
+            sci(w[0]),
+            sci(w[1]),
+            sci(w[2]),
+            sci(abs)
+        ));
     }
     text
 }
@@ -140,8 +152,18 @@ fn phyphox_pendulum(s: &Swing, rng: &mut ChaCha8Rng) -> String {
         "\"Time (s)\"\t\"Rotation x (rad/s)\"\t\"Rotation y (rad/s)\"\t\"Rotation z (rad/s)\"\n",
     );
     for (t, x) in s.t.iter().zip(&s.x) {
-        let w = [0.004 * normal(rng), x[1] + 0.004 * normal(rng), 0.004 * normal(rng)];
-        text.push_str(&format!("{}\t{}\t{}\t{}\n", comma(*t), comma(w[0]), comma(w[1]), comma(w[2])));
+        let w = [
+            0.004 * normal(rng),
+            x[1] + 0.004 * normal(rng),
+            0.004 * normal(rng),
+        ];
+        text.push_str(&format!(
+            "{}\t{}\t{}\t{}\n",
+            comma(*t),
+            comma(w[0]),
+            comma(w[1]),
+            comma(w[2])
+        ));
     }
     text
 }
@@ -163,7 +185,10 @@ fn tracker(s: &Swing, rng: &mut ChaCha8Rng, to_file: impl Fn(f64, f64) -> (f64, 
 fn phyphox_exports_read_within_2_percent() {
     let mut rng = ChaCha8Rng::seed_from_u64(38);
     let gyro = swing(0.45, 0.5, 0.01, 90.0);
-    let p = file("gyroscope.csv", phyphox_gyroscope(&gyro, &mut rng).as_bytes());
+    let p = file(
+        "gyroscope.csv",
+        phyphox_gyroscope(&gyro, &mut rng).as_bytes(),
+    );
     let layouts = assert_within_2(&p, &[0.45]);
     assert_eq!(layouts[0].tool, Some("phyphox"));
     let AngleFrom::Integrated { axis, .. } = &layouts[0].angle_from else {
@@ -171,9 +196,15 @@ fn phyphox_exports_read_within_2_percent() {
     };
     assert_eq!(axis, "Gyroscope z (rad/s)");
     let pendulum = swing(1.1, 0.3, 0.02, 60.0);
-    let p = file("pendulum.csv", phyphox_pendulum(&pendulum, &mut rng).as_bytes());
+    let p = file(
+        "pendulum.csv",
+        phyphox_pendulum(&pendulum, &mut rng).as_bytes(),
+    );
     let layouts = assert_within_2(&p, &[1.1]);
-    assert!(matches!(layouts[0].angle_from, AngleFrom::Integrated { .. }));
+    assert!(matches!(
+        layouts[0].angle_from,
+        AngleFrom::Integrated { .. }
+    ));
 }
 
 /// phyphox's zip export (a CSV a set, its metadata beside) and a
@@ -188,7 +219,8 @@ fn phyphox_zip_and_workbook_read_within_2_percent() {
     zip.start_file("Gyroscope.csv", opts).unwrap();
     zip.write_all(csv.as_bytes()).unwrap();
     zip.start_file("meta/device.csv", opts).unwrap();
-    zip.write_all(b"\"property\",\"value\"\n\"deviceModel\",\"Pixel\"\n").unwrap();
+    zip.write_all(b"\"property\",\"value\"\n\"deviceModel\",\"Pixel\"\n")
+        .unwrap();
     let bytes = zip.finish().unwrap().into_inner();
     assert_within_2(&file("gyroscope.zip", &bytes), &[0.7]);
     assert_within_2(&file("gyroscope.xlsx", &workbook(&csv)), &[0.7]);
@@ -200,12 +232,18 @@ fn phyphox_zip_and_workbook_read_within_2_percent() {
 fn tracker_exports_read_within_2_percent() {
     let mut rng = ChaCha8Rng::seed_from_u64(40);
     let s = swing(0.9, 0.6, 1.0 / 30.0, 45.0);
-    let metres = file("tracker-m.txt", tracker(&s, &mut rng, |x, y| (x, y)).as_bytes());
+    let metres = file(
+        "tracker-m.txt",
+        tracker(&s, &mut rng, |x, y| (x, y)).as_bytes(),
+    );
     let layouts = assert_within_2(&metres, &[0.9]);
     assert_eq!(layouts[0].tool, Some("Tracker"));
     assert!(matches!(
         layouts[0].angle_from,
-        AngleFrom::Position { from: import::PivotFrom::Origin, .. }
+        AngleFrom::Position {
+            from: import::PivotFrom::Origin,
+            ..
+        }
     ));
     let mut text = tracker(&s, &mut rng, |x, y| (640.0 + 400.0 * x, 120.0 - 400.0 * y));
     let lines: Vec<String> = text.lines().map(String::from).collect();
@@ -219,7 +257,10 @@ fn tracker_exports_read_within_2_percent() {
     let AngleFrom::Position { pivot, radius, .. } = layouts[0].angle_from else {
         panic!("{:?}", layouts[0].angle_from)
     };
-    assert!((pivot[0] - 640.0).abs() < 2.0 && (pivot[1] - 120.0).abs() < 2.0, "{pivot:?}");
+    assert!(
+        (pivot[0] - 640.0).abs() < 2.0 && (pivot[1] - 120.0).abs() < 2.0,
+        "{pivot:?}"
+    );
     assert!((radius / 400.0 - 0.9).abs() < 0.01, "{radius}");
 }
 
@@ -247,15 +288,31 @@ fn rotary_sensor_and_imu_exports_read_within_2_percent() {
             Some(x) => format!("{}\t{}", comma(two.t[k]), comma(x[0])),
             None => "\t".into(),
         };
-        text.push_str(&format!("{}\t{}\t{second}\r\n", comma(one.t[k]), comma(one.x[k][0])));
+        text.push_str(&format!(
+            "{}\t{}\t{second}\r\n",
+            comma(one.t[k]),
+            comma(one.x[k][0])
+        ));
     }
     let layouts = assert_within_2(&file("capstone.txt", text.as_bytes()), &[0.6, 0.6]);
     assert_eq!(layouts[1].run.as_deref(), Some("Run #2"));
     let imu = swing(0.25, 0.7, 0.004, 25.0);
-    let mut text = String::from("Opening phidget object....\nSpatial 302088 Attached!\nwaiting 30 seconds to start...\n");
+    let mut text = String::from(
+        "Opening phidget object....\nSpatial 302088 Attached!\nwaiting 30 seconds to start...\n",
+    );
     for (t, x) in imu.t.iter().zip(&imu.x) {
-        let g = [0.1 * normal(&mut rng), 0.1 * normal(&mut rng), x[1].to_degrees() + 0.1 * normal(&mut rng)];
-        text.push_str(&format!("[{}, 0.03, 0.99, -0.02, {}, {}, {}]\n", 30.0 + t, g[0], g[1], g[2]));
+        let g = [
+            0.1 * normal(&mut rng),
+            0.1 * normal(&mut rng),
+            x[1].to_degrees() + 0.1 * normal(&mut rng),
+        ];
+        text.push_str(&format!(
+            "[{}, 0.03, 0.99, -0.02, {}, {}, {}]\n",
+            30.0 + t,
+            g[0],
+            g[1],
+            g[2]
+        ));
     }
     let layouts = assert_within_2(&file("imu.txt", text.as_bytes()), &[0.25]);
     assert_eq!(layouts[0].tool, Some("Phidget Spatial logger"));
@@ -275,7 +332,9 @@ fn workbook(csv: &str) -> Vec<u8> {
             if field.parse::<f64>().is_ok() {
                 sheet.push_str(&format!("<c r=\"{at}\"><v>{field}</v></c>"));
             } else {
-                sheet.push_str(&format!("<c r=\"{at}\" t=\"inlineStr\"><is><t>{field}</t></is></c>"));
+                sheet.push_str(&format!(
+                    "<c r=\"{at}\" t=\"inlineStr\"><is><t>{field}</t></is></c>"
+                ));
             }
         }
         sheet.push_str("</row>");
@@ -290,7 +349,8 @@ fn workbook(csv: &str) -> Vec<u8> {
     ];
     let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
     for (name, body) in parts {
-        zip.start_file(name, zip::write::SimpleFileOptions::default()).unwrap();
+        zip.start_file(name, zip::write::SimpleFileOptions::default())
+            .unwrap();
         zip.write_all(body.as_bytes()).unwrap();
     }
     zip.finish().unwrap().into_inner()

@@ -416,7 +416,19 @@ fn follow_prints_what_estimate_prints_at_the_same_steps() {
             .arg(&raw),
     );
     let mut child = koopman()
-        .args(["estimate", "--json", "--g", "9.81", "--follow", "-", "--every", "100", "--smooth", "0.06", "--weights"])
+        .args([
+            "estimate",
+            "--json",
+            "--g",
+            "9.81",
+            "--follow",
+            "-",
+            "--every",
+            "100",
+            "--smooth",
+            "0.06",
+            "--weights",
+        ])
         .arg(&weights)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -440,21 +452,40 @@ fn follow_prints_what_estimate_prints_at_the_same_steps() {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     // 750 measurements at 0.04 s: every 100, and the last.
-    let steps: Vec<u64> = printed.iter().map(|v| v["steps"].as_u64().unwrap()).collect();
+    let steps: Vec<u64> = printed
+        .iter()
+        .map(|v| v["steps"].as_u64().unwrap())
+        .collect();
     assert_eq!(steps, [100, 200, 300, 400, 500, 600, 700, 750]);
     for v in &printed {
         let n = v["steps"].as_u64().unwrap().to_string();
         let want: serde_json::Value = serde_json::from_str(
             run_ok(
                 koopman()
-                    .args(["estimate", "--json", "--g", "9.81", "--steps", &n, "--weights"])
+                    .args([
+                        "estimate",
+                        "--json",
+                        "--g",
+                        "9.81",
+                        "--steps",
+                        &n,
+                        "--weights",
+                    ])
                     .arg(&weights)
                     .arg(&imported),
             )
             .trim(),
         )
         .unwrap();
-        for key in ["params", "param_std", "trust", "trust_reasons", "offset", "offset_std", "sigma"] {
+        for key in [
+            "params",
+            "param_std",
+            "trust",
+            "trust_reasons",
+            "offset",
+            "offset_std",
+            "sigma",
+        ] {
             assert_eq!(v[key], want[key], "{key} at {n} steps");
         }
     }

@@ -217,7 +217,12 @@ impl<'a> Report<'a> {
     }
 
     /// The rollout's line of `--json`.
-    pub(super) fn json(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+    pub(super) fn json(
+        &self,
+        id: u32,
+        tracked: &Tracked,
+        source: Option<&SourceMeta>,
+    ) -> Result<()> {
         let (a, body, rig) = (self.a, &self.body, self.body.rig);
         let (out, n) = (&tracked.out, tracked.measured);
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
@@ -240,7 +245,12 @@ impl<'a> Report<'a> {
     }
 
     /// The rollout's row of the text table, and its notes.
-    pub(super) fn text(&self, id: u32, tracked: &Tracked, source: Option<&SourceMeta>) -> Result<()> {
+    pub(super) fn text(
+        &self,
+        id: u32,
+        tracked: &Tracked,
+        source: Option<&SourceMeta>,
+    ) -> Result<()> {
         let (out, n) = (&tracked.out, tracked.measured);
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
         let effect_cols = self.effect_label.as_ref().map_or(String::new(), |_| {

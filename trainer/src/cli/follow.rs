@@ -116,12 +116,20 @@ impl<'m> Follow<'m> {
     }
 
     /// Filters the sample `x` at `t`; whether a print is due.
-    fn filter(&mut self, report: &Report<'_>, fresh: &Estimator<'m>, t: f64, x: [f64; 2]) -> Result<bool> {
+    fn filter(
+        &mut self,
+        report: &Report<'_>,
+        fresh: &Estimator<'m>,
+        t: f64,
+        x: [f64; 2],
+    ) -> Result<bool> {
         let state = [x[0] as f32, x[1] as f32];
         let fail = |e: estimator::Error| anyhow::anyhow!("at t = {t} s: {e}");
         let est = match &mut self.est {
             Some(est) => est,
-            None => self.est.insert(report.estimator(fresh, 1, self.stream.source())?),
+            None => self
+                .est
+                .insert(report.estimator(fresh, 1, self.stream.source())?),
         };
         let mut predicted = self.tracked.as_ref().map_or(0, |t| t.predicted);
         if let Some(prev) = self.last {
@@ -186,7 +194,11 @@ fn read_lines(mut reader: Box<dyn BufRead + Send>, tail: bool, idle: f64, tx: &S
                 if !line.trim().is_empty() {
                     let _ = tx.send(Input::Line(line.trim_end_matches(['\n', '\r']).to_string()));
                 }
-                let _ = tx.send(Input::End(if tail { "the file stopped growing" } else { "end of input" }));
+                let _ = tx.send(Input::End(if tail {
+                    "the file stopped growing"
+                } else {
+                    "end of input"
+                }));
                 return;
             }
             // A line still being written waits for its end.

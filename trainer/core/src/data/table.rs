@@ -159,7 +159,8 @@ impl Table {
         if lines.is_empty() {
             return Err(CsvError::new(path, 0, "empty file"));
         }
-        let unreadable = |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
+        let unreadable =
+            |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
         // The first data row, its separator its own.
         let mut first_data = None;
         for (k, &(line, l)) in lines.iter().enumerate() {
@@ -335,8 +336,18 @@ mod tests {
         assert_eq!(t.header, ["column 1", "column 2", "column 3"]);
         assert_eq!(t.preamble.len(), 2);
         assert_eq!(t.rows[1].fields, ["31.056", "NaN", "1e-2"]);
-        assert!(t.optional_number(&t.rows[1], 1, "x").unwrap().unwrap().is_nan());
+        assert!(
+            t.optional_number(&t.rows[1], 1, "x")
+                .unwrap()
+                .unwrap()
+                .is_nan()
+        );
         assert_eq!(t.optional_number(&t.rows[1], 5, "x").unwrap(), None);
-        assert!(t.number(&t.rows[1], 1, "x").unwrap_err().to_string().contains("imu.txt:4: x is NaN"));
+        assert!(
+            t.number(&t.rows[1], 1, "x")
+                .unwrap_err()
+                .to_string()
+                .contains("imu.txt:4: x is NaN")
+        );
     }
 }

@@ -27,7 +27,11 @@ pub fn read_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
         _ => return Ok(vec![Table::read(path)?]),
     };
     if tables.is_empty() {
-        return Err(CsvError::new(path, 0, "holds no table (no CSV file or sheet with rows)"));
+        return Err(CsvError::new(
+            path,
+            0,
+            "holds no table (no CSV file or sheet with rows)",
+        ));
     }
     Ok(tables)
 }
@@ -35,7 +39,8 @@ pub fn read_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
 /// Each CSV entry of a zip, `meta/` left out.
 fn zip_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
     let bad = |e: &dyn std::fmt::Display| CsvError::new(path, 0, format!("unreadable zip: {e}"));
-    let file = std::fs::File::open(path).map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+    let file = std::fs::File::open(path)
+        .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| bad(&e))?;
     let mut tables = Vec::new();
     for k in 0..zip.len() {

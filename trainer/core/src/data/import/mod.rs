@@ -58,18 +58,18 @@ mod stream;
 #[cfg(test)]
 mod tool_exports;
 
+pub use archive::read_tables;
 pub use checks::{MIN_SPAN_DEGREES, MIN_SPAN_RADIANS, check_recording};
 pub use differentiate::{differentiate, differentiate_uneven, rough_period};
 pub use glitch::glitches;
-pub use archive::read_tables;
 pub use position::{PivotFrom, Pivoted, about_pivot};
 pub use rate_only::{Integrated, integrate};
-pub use releases::releases;
-pub use stream::Stream;
 pub use read::{
     AngleFrom, Layout, UnitSource, parse, parse_runs, parse_table, parse_table_with_layout,
     unrecognised,
 };
+pub use releases::releases;
+pub use stream::Stream;
 
 use crate::protocol::DT;
 
@@ -273,8 +273,8 @@ pub fn import_with_layouts(
     for p in paths {
         for (rec, layout) in read_recordings(p, opts)? {
             let id = rollouts.len() as u32 + 1;
-            let (rollout, source) = import_one(&rec, &layout, id, opts)
-                .with_context(|| format!("{}", p.display()))?;
+            let (rollout, source) =
+                import_one(&rec, &layout, id, opts).with_context(|| format!("{}", p.display()))?;
             rollouts.push(rollout);
             sources.push(source);
             layouts.push(layout);

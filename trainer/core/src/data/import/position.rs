@@ -70,7 +70,11 @@ pub fn about_pivot(x: &[f64], y: &[f64], given: Option<[f64; 2]>) -> Result<Pivo
         })
         .collect();
     if from == PivotFrom::Fitted {
-        let (lo, hi) = theta.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = theta
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         if hi - lo < MIN_ARC {
             return Err(format!(
                 "the track spans {:.3} rad of the arc fitted to it (centre {:.4}, {:.4}): too little to find the pivot; give it (--pivot X,Y)",
@@ -123,8 +127,20 @@ fn fit_arc(x: &[f64], y: &[f64]) -> Result<[f64; 2], String> {
 fn kasa(x: &[f64], y: &[f64], keep: &[bool]) -> Result<[f64; 2], String> {
     // Centred and scaled for the normal equations' conditioning.
     let n = keep.iter().filter(|k| **k).count() as f64;
-    let mx = x.iter().zip(keep).filter(|(_, k)| **k).map(|(v, _)| v).sum::<f64>() / n;
-    let my = y.iter().zip(keep).filter(|(_, k)| **k).map(|(v, _)| v).sum::<f64>() / n;
+    let mx = x
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(v, _)| v)
+        .sum::<f64>()
+        / n;
+    let my = y
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(v, _)| v)
+        .sum::<f64>()
+        / n;
     let scale = x
         .iter()
         .zip(y)
@@ -145,7 +161,9 @@ fn kasa(x: &[f64], y: &[f64], keep: &[bool]) -> Result<[f64; 2], String> {
         .ok_or("the bob's x, y lie on a line, not an arc: give the pivot (--pivot X,Y)")?;
     let (cx, cy) = (-sol[0] / 2.0, -sol[1] / 2.0);
     if cx.hypot(cy) > 1e3 {
-        return Err("the bob's x, y lie on a line, not an arc: give the pivot (--pivot X,Y)".into());
+        return Err(
+            "the bob's x, y lie on a line, not an arc: give the pivot (--pivot X,Y)".into(),
+        );
     }
     Ok([mx + cx * scale, my + cy * scale])
 }
@@ -163,28 +181,49 @@ mod tests {
         let (px, py, l) = (0.3, 1.2, 0.5);
         let truth: Vec<f64> = (0..500).map(|k| 0.6 * (k as f64 * 0.05).cos()).collect();
         let noise = |k: usize| 1e-3 * (((k * 7919) % 17) as f64 / 8.0 - 1.0);
-        let mut x: Vec<f64> = truth.iter().enumerate().map(|(k, a)| px + l * a.sin() + noise(k)).collect();
-        let y: Vec<f64> = truth.iter().enumerate().map(|(k, a)| py - l * a.cos() + noise(k + 3)).collect();
+        let mut x: Vec<f64> = truth
+            .iter()
+            .enumerate()
+            .map(|(k, a)| px + l * a.sin() + noise(k))
+            .collect();
+        let y: Vec<f64> = truth
+            .iter()
+            .enumerate()
+            .map(|(k, a)| py - l * a.cos() + noise(k + 3))
+            .collect();
         x[200] += 0.3;
         let got = about_pivot(&x, &y, None).unwrap();
         assert_eq!(got.from, PivotFrom::Fitted);
-        assert!((got.pivot[0] - px).abs() < 5e-3 && (got.pivot[1] - py).abs() < 5e-3, "{:?}", got.pivot);
+        assert!(
+            (got.pivot[0] - px).abs() < 5e-3 && (got.pivot[1] - py).abs() < 5e-3,
+            "{:?}",
+            got.pivot
+        );
         assert!((got.radius - l).abs() < 0.01, "{}", got.radius);
         for (k, (a, b)) in got.theta.iter().zip(&truth).enumerate() {
             if k != 200 {
                 assert!((a - b).abs() < 0.01, "{k}: {a} vs {b}");
             }
         }
-        let (xo, yo): (Vec<f64>, Vec<f64>) = x.iter().zip(&y).map(|(a, b)| (a - px, b - py)).unzip();
+        let (xo, yo): (Vec<f64>, Vec<f64>) =
+            x.iter().zip(&y).map(|(a, b)| (a - px, b - py)).unzip();
         let mut xo = xo;
         xo[200] -= 0.3;
         let got = about_pivot(&xo, &yo, None).unwrap();
         assert_eq!(got.from, PivotFrom::Origin);
         assert!((got.theta[10] - truth[10]).abs() < 0.01);
         // Pixels, y down: the same swing, mirrored.
-        let (xp, yp): (Vec<f64>, Vec<f64>) = xo.iter().zip(&yo).map(|(a, b)| (500.0 + 400.0 * a, 100.0 - 400.0 * b)).unzip();
+        let (xp, yp): (Vec<f64>, Vec<f64>) = xo
+            .iter()
+            .zip(&yo)
+            .map(|(a, b)| (500.0 + 400.0 * a, 100.0 - 400.0 * b))
+            .unzip();
         let got = about_pivot(&xp, &yp, None).unwrap();
-        assert!((got.pivot[0] - 500.0).abs() < 2.0 && (got.pivot[1] - 100.0).abs() < 2.0, "{:?}", got.pivot);
+        assert!(
+            (got.pivot[0] - 500.0).abs() < 2.0 && (got.pivot[1] - 100.0).abs() < 2.0,
+            "{:?}",
+            got.pivot
+        );
         assert!((got.theta[10] - truth[10]).abs() < 0.01);
         // Given: taken as it is.
         let got = about_pivot(&x, &y, Some([px, py])).unwrap();

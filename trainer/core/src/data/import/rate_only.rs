@@ -133,7 +133,10 @@ fn swing_axis(axes: &[Vec<f64>], names: &[String]) -> Result<(Vec<f64>, String),
         [one] => Ok((one.clone(), names.first().cloned().unwrap_or_default())),
         _ => {
             let n = axes[0].len();
-            let means: Vec<f64> = axes.iter().map(|a| a.iter().sum::<f64>() / n as f64).collect();
+            let means: Vec<f64> = axes
+                .iter()
+                .map(|a| a.iter().sum::<f64>() / n as f64)
+                .collect();
             let cov = DMatrix::from_fn(axes.len(), axes.len(), |i, j| {
                 (0..n)
                     .map(|k| (axes[i][k] - means[i]) * (axes[j][k] - means[j]))
@@ -206,7 +209,10 @@ mod tests {
         let rate: Vec<f64> = t.iter().map(|&s| 0.4 * w * (w * s).cos()).collect();
         let tilt = 5f64.to_radians();
         let axes = vec![
-            rate.iter().enumerate().map(|(k, _)| 0.01 + 0.001 * ((k * 7919) % 13) as f64 / 13.0).collect(),
+            rate.iter()
+                .enumerate()
+                .map(|(k, _)| 0.01 + 0.001 * ((k * 7919) % 13) as f64 / 13.0)
+                .collect(),
             rate.iter().map(|r| r * tilt.sin() - 0.01).collect(),
             rate.iter().map(|r| r * tilt.cos() + 0.01).collect(),
         ];
@@ -215,7 +221,12 @@ mod tests {
         assert_eq!(got.axis, "z");
         assert!((got.window - 2.0 / 1.5).abs() < 0.05, "{}", got.window);
         for k in 0..t.len() {
-            assert!((got.theta[k] - truth[k]).abs() < 2e-3, "{k}: {} vs {}", got.theta[k], truth[k]);
+            assert!(
+                (got.theta[k] - truth[k]).abs() < 2e-3,
+                "{k}: {} vs {}",
+                got.theta[k],
+                truth[k]
+            );
             assert!((got.rate[k] - rate[k]).abs() < 2e-3, "{k}");
         }
         // Swung on a diagonal: named as a direction.
@@ -224,9 +235,17 @@ mod tests {
             rate.iter().map(|r| r * 0.8).collect(),
         ];
         let got = integrate(&t, &diagonal, &names[..2]).unwrap();
-        assert!(got.axis.starts_with("the principal direction (0.60, 0.80)"), "{}", got.axis);
+        assert!(
+            got.axis.starts_with("the principal direction (0.60, 0.80)"),
+            "{}",
+            got.axis
+        );
         // No swing at all: said so.
         let still = vec![vec![0.01; t.len()]];
-        assert!(integrate(&t, &still, &names[..1]).unwrap_err().contains("no swing"));
+        assert!(
+            integrate(&t, &still, &names[..1])
+                .unwrap_err()
+                .contains("no swing")
+        );
     }
 }

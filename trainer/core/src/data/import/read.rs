@@ -436,14 +436,25 @@ pub fn parse_table_with_layout(
 fn known_headerless(table: &Table) -> (Table, Option<&'static str>) {
     let phidget = !table.named
         && table.header.len() == 7
-        && table.preamble.iter().any(|l| l.to_lowercase().contains("phidget"));
+        && table
+            .preamble
+            .iter()
+            .any(|l| l.to_lowercase().contains("phidget"));
     if !phidget {
         return (table.clone(), None);
     }
     let mut named = table.clone();
-    named.header = ["t (s)", "ax (g)", "ay (g)", "az (g)", "gx (°/s)", "gy (°/s)", "gz (°/s)"]
-        .map(String::from)
-        .to_vec();
+    named.header = [
+        "t (s)",
+        "ax (g)",
+        "ay (g)",
+        "az (g)",
+        "gx (°/s)",
+        "gy (°/s)",
+        "gz (°/s)",
+    ]
+    .map(String::from)
+    .to_vec();
     (named, Some("Phidget Spatial logger"))
 }
 
@@ -482,7 +493,9 @@ fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
                 .filter(|&k| marks[k].as_ref().is_none_or(|m| *m == run))
                 .collect();
             let pick = |fields: &[String]| -> Vec<String> {
-                cols.iter().map(|&k| fields.get(k).cloned().unwrap_or_default()).collect()
+                cols.iter()
+                    .map(|&k| fields.get(k).cloned().unwrap_or_default())
+                    .collect()
             };
             let rows = table
                 .rows
@@ -523,7 +536,15 @@ fn rate_axis(field: &str) -> Option<char> {
     let per_second = header_unit(field).is_some_and(|(_, per)| per);
     let named = matches!(
         stem,
-        "gyroscope" | "gyro" | "g" | "w" | "rotation" | "rotation_rate" | "angular_velocity" | "omega" | "rate"
+        "gyroscope"
+            | "gyro"
+            | "g"
+            | "w"
+            | "rotation"
+            | "rotation_rate"
+            | "angular_velocity"
+            | "omega"
+            | "rate"
     );
     (named || (per_second && !stem.is_empty())).then_some(axis)
 }
@@ -546,7 +567,10 @@ fn holds(table: &Table, opts: &ImportOptions, time: Option<usize>) -> Result<Hol
     }
     // A column that only increases is a time, not a position.
     let increasing = |k: usize| could_be(table, k).starts_with("increasing");
-    match (find(table, None, &["x"], "x")?, find(table, None, &["y"], "y")?) {
+    match (
+        find(table, None, &["x"], "x")?,
+        find(table, None, &["y"], "y")?,
+    ) {
         (Some(x), Some(y)) if !increasing(x) && !increasing(y) => Ok(Holds::Position { x, y }),
         _ => Err(unrecognised(table)),
     }
@@ -609,7 +633,13 @@ fn could_be(table: &Table, k: usize) -> String {
     let mut side = 0i8;
     let mut crossings = 0;
     for x in &v {
-        let s = if *x > mid + band { 1 } else if *x < mid - band { -1 } else { 0 };
+        let s = if *x > mid + band {
+            1
+        } else if *x < mid - band {
+            -1
+        } else {
+            0
+        };
         if s != 0 && s != side {
             crossings += usize::from(side != 0);
             side = s;
@@ -665,10 +695,17 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     let recording = match holds {
         Holds::Angle { angle, rate } => {
             angle_layout(table, opts, angle, rate, &mut layout);
-            let theta = values[0].iter().map(|v| v * scale(layout.angle_unit.0)).collect();
+            let theta = values[0]
+                .iter()
+                .map(|v| v * scale(layout.angle_unit.0))
+                .collect();
             let rate_scale = scale(layout.rate_unit.0);
             let theta_dot = rate.map(|_| values[1].iter().map(|v| v * rate_scale).collect());
-            Recording { t, theta, theta_dot }
+            Recording {
+                t,
+                theta,
+                theta_dot,
+            }
         }
         Holds::Rate(axes) => {
             layout.rate_unit = unit_of(axes[0], options_unit);
@@ -698,7 +735,8 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
         Holds::Position { x, y } => {
             layout.angle = format!("{}`, `{}", header(x), header(y));
             layout.angle_unit = (Unit::Radians, UnitSource::Format);
-            let got = about_pivot(&values[0], &values[1], opts.pivot).map_err(|e| table.error(0, e))?;
+            let got =
+                about_pivot(&values[0], &values[1], opts.pivot).map_err(|e| table.error(0, e))?;
             layout.angle_from = AngleFrom::Position {
                 pivot: got.pivot,
                 from: got.from,
@@ -747,7 +785,10 @@ pub(crate) struct StreamColumns {
 /// The columns of a table (its header and first rows) read as it is
 /// written: an angle column is needed (a rate only or a position is read
 /// from the whole recording, by `import`).
-pub(crate) fn stream_columns(table: &Table, opts: &ImportOptions) -> Result<StreamColumns, CsvError> {
+pub(crate) fn stream_columns(
+    table: &Table,
+    opts: &ImportOptions,
+) -> Result<StreamColumns, CsvError> {
     let time = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
     let (angle, rate) = match holds(table, opts, time)? {
         Holds::Angle { angle, rate } => (angle, rate),
@@ -759,7 +800,10 @@ pub(crate) fn stream_columns(table: &Table, opts: &ImportOptions) -> Result<Stre
         }
     };
     if time.is_none() && opts.rate.is_none() {
-        return Err(table.error(0, "no time column: name it (--time-column N) or give the sample rate (--rate HZ)"));
+        return Err(table.error(
+            0,
+            "no time column: name it (--time-column N) or give the sample rate (--rate HZ)",
+        ));
     }
     let mut layout = Layout {
         file: table.path.display().to_string(),
@@ -807,8 +851,10 @@ fn read_rows(
         for &k in cols {
             got.push(table.optional_number(row, k, &bare(&table.header[k]))?);
         }
-        let (Some(time), Some(got)) = (time.filter(|v| v.is_finite()), got.into_iter().collect::<Option<Vec<f64>>>())
-        else {
+        let (Some(time), Some(got)) = (
+            time.filter(|v| v.is_finite()),
+            got.into_iter().collect::<Option<Vec<f64>>>(),
+        ) else {
             skipped += 1;
             continue;
         };
@@ -822,10 +868,9 @@ fn read_rows(
                 continue;
             }
             if time < prev {
-                return Err(table.error(
-                    row.line,
-                    format!("time {time} goes back (previous {prev})"),
-                ));
+                return Err(
+                    table.error(row.line, format!("time {time} goes back (previous {prev})"))
+                );
             }
         }
         t.push(time);
@@ -937,27 +982,57 @@ mod tests {
     /// the padding and the gap skipped and counted.
     #[test]
     fn runs_side_by_side_are_read_one_by_one() {
-        let mut text = String::from("Run 1: Time (s),Run 1: Angle (rad),Run 2: Time (s),Run 2: Angle (rad)\n");
+        let mut text =
+            String::from("Run 1: Time (s),Run 1: Angle (rad),Run 2: Time (s),Run 2: Angle (rad)\n");
         for k in 0..10 {
             let t = f64::from(k) * 0.1;
-            let first = if k == 4 { String::new() } else { format!("{}", (3.0 * t).cos()) };
-            let second = if k < 6 { format!("{t},{}", 0.5 * (3.0 * t).cos()) } else { "NaN,NaN".into() };
+            let first = if k == 4 {
+                String::new()
+            } else {
+                format!("{}", (3.0 * t).cos())
+            };
+            let second = if k < 6 {
+                format!("{t},{}", 0.5 * (3.0 * t).cos())
+            } else {
+                "NaN,NaN".into()
+            };
             text.push_str(&format!("{t},{first},{second}\n"));
         }
-        let runs = parse_runs(&Table::parse(Path::new("v.csv"), &text).unwrap(), &ImportOptions::default()).unwrap();
+        let runs = parse_runs(
+            &Table::parse(Path::new("v.csv"), &text).unwrap(),
+            &ImportOptions::default(),
+        )
+        .unwrap();
         assert_eq!(runs.len(), 2);
         let ((one, l1), (two, l2)) = (&runs[0], &runs[1]);
-        assert_eq!((one.t.len(), l1.skipped, l1.run.as_deref()), (9, 1, Some("Run 1")));
-        assert_eq!((two.t.len(), l2.skipped, l2.run.as_deref()), (6, 4, Some("Run 2")));
+        assert_eq!(
+            (one.t.len(), l1.skipped, l1.run.as_deref()),
+            (9, 1, Some("Run 1"))
+        );
+        assert_eq!(
+            (two.t.len(), l2.skipped, l2.run.as_deref()),
+            (6, 4, Some("Run 2"))
+        );
         assert_eq!(l2.tool, Some("Vernier Graphical Analysis"));
         assert_eq!(two.theta[1], 0.5 * 0.3f64.cos());
         // A time that goes back is an error naming the line; one repeated
         // is skipped and counted.
         let back = "t,theta\n0,1\n0.1,2\n0.1,2\n0.05,3\n";
-        let e = parse_runs(&Table::parse(Path::new("b.csv"), back).unwrap(), &ImportOptions::default()).unwrap_err();
-        assert!(e.to_string().starts_with("b.csv:5: time 0.05 goes back"), "{e}");
+        let e = parse_runs(
+            &Table::parse(Path::new("b.csv"), back).unwrap(),
+            &ImportOptions::default(),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("b.csv:5: time 0.05 goes back"),
+            "{e}"
+        );
         let twice = "t,theta\n0,1\n0.1,2\n0.1,2\n0.2,3\n";
-        let runs = parse_runs(&Table::parse(Path::new("r.csv"), twice).unwrap(), &ImportOptions::default()).unwrap();
+        let runs = parse_runs(
+            &Table::parse(Path::new("r.csv"), twice).unwrap(),
+            &ImportOptions::default(),
+        )
+        .unwrap();
         assert_eq!((runs[0].0.t.len(), runs[0].1.repeated), (3, 1));
     }
 }

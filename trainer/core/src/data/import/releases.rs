@@ -82,7 +82,10 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
     }
     // A rest or a hand: a half swing outside the releases slower than a
     // swing's, or a still start or end of over MIN_OTHER periods.
-    let inside = |k: usize| runs.iter().any(|r| r.contains(&turns[k]) && r.contains(&turns[k + 1]));
+    let inside = |k: usize| {
+        runs.iter()
+            .any(|r| r.contains(&turns[k]) && r.contains(&turns[k + 1]))
+    };
     let slow = (0..halves.len()).any(|k| !inside(k) && halves[k].0 > 0.8 * period);
     let still_ends = t[turns[0]] - t[0] > MIN_OTHER * period
         || t[t.len() - 1] - t[turns[turns.len() - 1]] > MIN_OTHER * period;
@@ -93,7 +96,9 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
 fn turning_points(theta: &[f64]) -> Vec<usize> {
     let (lo, hi) = theta
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
     let h = HYSTERESIS * (hi - lo);
     let mut turns = Vec::new();
     // The running extreme and its direction (+1 rising, -1 falling, 0 not yet).

@@ -121,7 +121,10 @@ impl Stream {
 
     /// The end of the input: the samples left.
     pub fn finish(&mut self) -> Result<Vec<(f64, [f64; 2])>> {
-        anyhow::ensure!(self.columns.is_some(), "the input ended before its first data row");
+        anyhow::ensure!(
+            self.columns.is_some(),
+            "the input ended before its first data row"
+        );
         self.settle(true)
     }
 
@@ -211,9 +214,16 @@ impl Stream {
         }
         let (rollout, source) = rollout_on_grid(&self.rec, 1, &self.opts, origin)?;
         self.source = Some(source);
-        let step = self.source.as_ref().map_or(self.opts.dt, |s| s.median_interval);
+        let step = self
+            .source
+            .as_ref()
+            .map_or(self.opts.dt, |s| s.median_interval);
         let margin = MARGIN_ROWS as f64 * step + self.opts.smooth.unwrap_or(0.0);
-        let until = if end { f64::INFINITY } else { self.rec.t[n - 1] - margin - origin };
+        let until = if end {
+            f64::INFINITY
+        } else {
+            self.rec.t[n - 1] - margin - origin
+        };
         let dt = self.opts.dt;
         let mut out = Vec::new();
         for (t, x) in rollout.t.iter().zip(&rollout.xs) {
