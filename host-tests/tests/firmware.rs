@@ -50,9 +50,10 @@ fn firmware_rollouts() -> Vec<(u32, Vec<[f32; 2]>)> {
 /// u32 count, u32 steps, then per rollout a u32 id and `steps` pairs of
 /// f32.
 fn encode(rollouts: &[(u32, Vec<[f32; 2]>)]) -> Vec<u8> {
+    let steps = rollouts.first().map_or(0, |r| r.1.len());
     let mut b = Vec::new();
     b.extend((rollouts.len() as u32).to_le_bytes());
-    b.extend((STEPS as u32).to_le_bytes());
+    b.extend((steps as u32).to_le_bytes());
     for (id, xs) in rollouts {
         b.extend(id.to_le_bytes());
         for x in xs {
@@ -63,14 +64,19 @@ fn encode(rollouts: &[(u32, Vec<[f32; 2]>)]) -> Vec<u8> {
     b
 }
 
-/// The rig blob's data in the firmware: `STEPS` measurements of the
+/// Steps of the rig blob's rollout in the firmware: 20.5 s at 0.04 s, 26
+/// half swings of the 0.6 m string, so that its quality factor is read
+/// (from the eighth) and compared too.
+const RIG_STEPS: usize = 512;
+
+/// The rig blob's data in the firmware: [`RIG_STEPS`] measurements of the
 /// string of [`trainer_core::bench::rig_window`] at the blob's interval
 /// (rollout id 0).
 fn rig_rollouts() -> Vec<(u32, Vec<[f32; 2]>)> {
     let bytes = rig_blob();
     let model = Model::from_bytes(&bytes).unwrap();
     let dt = f64::from(model.blob().body.dt);
-    vec![(0, rig_window(STEPS, dt))]
+    vec![(0, rig_window(RIG_STEPS, dt))]
 }
 
 #[test]
@@ -219,6 +225,7 @@ fn firmware_in_qemu_matches_the_host() {
     let mut worst: f32 = 0.0;
     let mut compared = 0;
     let mut reasons_seen = 0;
+    let mut q_seen = 0;
     // The firmware's order: each test rollout on the gain schedule, then
     // without it; then the string, through the rig blob (the extended
     // filter).
@@ -259,8 +266,22 @@ fn firmware_in_qemu_matches_the_host() {
                 worst = worst.max(d);
                 compared += 1;
             }
-            assert_eq!(w[10], h.trust.as_str(), "{line}");
-            assert_eq!(w[11], reasons_token(&h.trust), "{line}");
+            // The quality factor and its std: NaN for none.
+            for (hex, hv) in w[10..12].iter().zip([h.q_factor, h.q_factor_std]) {
+                let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+                match hv {
+                    None => assert!(fv.is_nan(), "{line}: firmware {fv}, host none"),
+                    Some(hv) => {
+                        q_seen += 1;
+                        let d = (fv - hv).abs();
+                        assert!(d <= tol(hv), "{line}: firmware Q {fv} host {hv}");
+                        worst = worst.max(d);
+                        compared += 1;
+                    }
+                }
+            }
+            assert_eq!(w[12], h.trust.as_str(), "{line}");
+            assert_eq!(w[13], reasons_token(&h.trust), "{line}");
             reasons_seen += usize::from(!h.trust.reasons().is_empty());
         }
     }
@@ -268,6 +289,8 @@ fn firmware_in_qemu_matches_the_host() {
     // The test rollouts at L = 0.5 and 1 are untrusted with reasons, so
     // the reasons were compared, not only the empty lists.
     assert!(reasons_seen > 0, "no step with reasons compared");
+    // The rig's string is read long enough for its quality factor.
+    assert!(q_seen > 0, "no quality factor compared");
 
     let sizes = lines.iter().find(|l| l.starts_with("sizes")).unwrap();
     let est_bytes: usize = field(sizes, "estimator").parse().unwrap();

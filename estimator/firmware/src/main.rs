@@ -369,6 +369,9 @@ fn filter(
         for v in out.params.iter().chain(&out.param_std).chain(&out.sigma) {
             line.hex(*v);
         }
+        // The quality factor and its std, NaN where there is none yet.
+        line.hex(out.q_factor.unwrap_or(f32::NAN));
+        line.hex(out.q_factor_std.unwrap_or(f32::NAN));
         line.str(out.trust.as_str()).str(" ");
         reasons(line, &out.trust);
         line.send();
@@ -385,6 +388,7 @@ fn filter(
         line.str(" length=").dec(p[0]);
         line.str(" std=").dec(out.param_std[0]);
         line.str(" sigma=").dec(out.sigma[0]);
+        line.str(" q=").dec(out.q_factor.unwrap_or(f32::NAN));
         line.str(" trust=").str(out.trust.as_str()).str(" ");
         reasons(line, &out.trust);
         line.str(" window_steps=").uint(window_steps);

@@ -80,8 +80,11 @@ impl Centre {
         [theta - self.applied, rate]
     }
 
-    /// Records one measured angle and rate.
-    pub(crate) fn push(&mut self, theta: f32, rate: f32) {
+    /// Records one measured angle and rate; at a turning point, the half
+    /// swing it ends: `Some(Some(a))` with its amplitude `a` (half the
+    /// range from the turning point before, [`super::decay`]), `Some(None)`
+    /// where the chain starts again.
+    pub(crate) fn push(&mut self, theta: f32, rate: f32) -> Option<Option<f32>> {
         let r = libm::fabsf(rate);
         let turned = match self.phase {
             0 => {
@@ -99,13 +102,17 @@ impl Centre {
                 }
             }
         };
+        let mut half = None;
         if turned {
             let (len, last) = (f32::from(self.len), f32::from(self.last_len));
             if last > 0.0 && (len > 1.5 * last || 1.5 * len < last) {
                 self.n_turns = 0;
             }
             self.last_len = self.len;
-            self.turn(self.refined());
+            let point = self.refined();
+            let [_, before] = self.turns;
+            half = Some((self.n_turns >= 1).then(|| 0.5 * libm::fabsf(point - before)));
+            self.turn(point);
             self.phase = -self.phase;
             self.set_extreme(theta);
             self.last_peak = self.peak;
@@ -113,6 +120,7 @@ impl Centre {
             self.len = 1;
         }
         self.last = theta;
+        half
     }
 
     /// A step without a measurement: the half swing and the chain of

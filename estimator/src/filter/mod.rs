@@ -65,6 +65,7 @@
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
 mod centre;
+mod decay;
 mod full;
 mod kernels;
 mod output;
@@ -75,6 +76,7 @@ mod two_stage;
 pub use output::StepOutput;
 
 use centre::Centre;
+use decay::Decay;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
@@ -141,6 +143,8 @@ pub struct Estimator<'m> {
     g_known: bool,
     /// The angle's zero ([`StepOutput::offset`]).
     centre: Centre,
+    /// The swing's decay ([`StepOutput::q_factor`]).
+    decay: Decay,
     /// Measurements refused as outliers so far, in a row now, and whether
     /// the last one was.
     outliers: u32,
@@ -179,6 +183,7 @@ impl<'m> Estimator<'m> {
             held: None,
             g_ratio: 1.0,
             centre: Centre::default(),
+            decay: Decay::default(),
             outliers: 0,
             outlier_run: 0,
             outlier: false,
@@ -405,15 +410,19 @@ impl<'m> Estimator<'m> {
         let centred = self.centre.centred(theta, rate);
         let x_n = self.model.normalise(&centred);
         let z = self.model.encode(&x_n);
-        let out = self.update(&z, Some((&centred, &x_n)))?;
+        let mut out = self.update(&z, Some((&centred, &x_n)))?;
         // A refused measurement leaves no turning point behind (and breaks
         // their chain); a taken one may give the offset, subtracted from
-        // the next measurement on.
+        // the next measurement on, and end a half swing.
+        self.decay.tick(self.model.blob().body.dt);
         if out.outlier {
             self.centre.gap();
         } else {
             let was = self.centre.subtracting();
-            self.centre.push(theta, rate);
+            if let Some(half) = self.centre.push(theta, rate) {
+                self.decay.turn(half);
+                (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
+            }
             if !was && self.centre.subtracting() {
                 self.reopen_params();
             }

@@ -100,6 +100,15 @@ pub struct StepOutput {
     pub outlier: bool,
     /// Measurements refused as outliers so far.
     pub outliers: u32,
+    /// The quality factor, `Q = omega / (2 gamma)` from the decay rate
+    /// `gamma` of the swing's amplitude over the recent half swings, at
+    /// the swing [`q_swing`](Self::q_swing) (`None` before eight half
+    /// swings, or while the swing does not decay).
+    pub q_factor: Option<f32>,
+    /// Its calibrated standard deviation.
+    pub q_factor_std: Option<f32>,
+    /// The swing, rad, `q_factor` is at (the recent half swings' mean).
+    pub q_swing: Option<f32>,
 }
 
 /// One parameter as reported.
@@ -202,6 +211,9 @@ impl Estimator<'_> {
             innovation: self.innovation,
             outlier: self.outlier,
             outliers: self.outliers,
+            q_factor: self.decay.q_factor().0,
+            q_factor_std: self.decay.q_factor().1,
+            q_swing: self.decay.q_factor().2,
         }
     }
 

@@ -76,6 +76,7 @@ impl Estimator<'_> {
         self.bridged = true;
         self.kinematics.gap();
         self.centre.gap();
+        self.decay.tick(self.model.blob().body.dt);
         self.t = self.t.saturating_add(1);
         Ok(())
     }

@@ -113,6 +113,12 @@ pub struct At {
     pub consistency: Option<f32>,
     /// Whether the estimate is held (the swing too small to read).
     pub held: bool,
+    /// The quality factor at the current swing, and its standard deviation.
+    pub q_factor: Option<f32>,
+    /// Its standard deviation.
+    pub q_factor_std: Option<f32>,
+    /// The swing it is at, rad.
+    pub q_swing: Option<f32>,
 }
 
 /// Writes a verdict as its word.
@@ -138,6 +144,9 @@ impl At {
             rate_ratio: out.rate_ratio,
             consistency: out.consistency,
             held: out.held,
+            q_factor: out.q_factor,
+            q_factor_std: out.q_factor_std,
+            q_swing: out.q_swing,
         }
     }
 
@@ -174,6 +183,17 @@ pub struct Outcome {
     pub peer_first: Reading,
     /// The physics peer at the end.
     pub peer_end: Reading,
+    /// The true swing over the last period, rad.
+    pub end_swing: f64,
+    /// Swing periods recorded.
+    pub periods: f64,
+    /// The true quality factor ([`crate::quality::q_of`]) at the swing
+    /// the blob's is read at (at `end_swing` where it gives none).
+    pub q_true: f64,
+    /// The peer's `omega / c` at the end, where its `c` is positive.
+    pub peer_q: Option<f64>,
+    /// Half swings of the true angle of at least [`crate::quality::MIN_SWING`].
+    pub readable_halves: usize,
 }
 
 /// The dissipations in turn, with their real sizes.
@@ -235,7 +255,20 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         let Some(effect) = spec.effects.first() else {
             anyhow::bail!("lab recording {k} has no dissipation");
         };
+        let omega = spec.w2().sqrt();
+        let end_swing = spec.end_swing();
+        let peer_omega = rig.w2(LAB_G, peer_end.length).sqrt();
+        let peer_q = (peer_end.damping > 0.0).then(|| peer_omega / peer_end.damping);
         out.push(Outcome {
+            end_swing,
+            periods: spec.duration * omega / (2.0 * std::f64::consts::PI),
+            q_true: crate::quality::q_of(
+                &spec.effects,
+                omega,
+                end.q_swing.map_or(end_swing, f64::from),
+            ),
+            peer_q,
+            readable_halves: spec.half_swings_above(crate::quality::MIN_SWING),
             effect: name.into(),
             coefficient: effect.coefficient,
             length: spec.length,

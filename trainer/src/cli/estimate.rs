@@ -156,11 +156,13 @@ impl<'a> Report<'a> {
             String::new()
         };
         super::say(&format!(
-            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  {:>12}  {:>8}  {:>8}  {glitch_head}trust",
+            "rollout  steps  {:>18}  {:>10}  {effect_head}{:>10}  {:>12}  {:>8}  {:>8}  {:>8}  {:>8}  {glitch_head}trust",
             self.body.rig.length_label(),
             "std",
             "sigma",
             "offset (rad)",
+            "std",
+            "Q",
             "std",
             "outliers"
         ))
@@ -237,6 +239,7 @@ impl<'a> Report<'a> {
             "g": a.g.unwrap_or(body.g), "g_declared": a.g.is_some(),
             "rig": rig, "length_label": rig.length_label(),
             "offset": out.offset, "offset_std": out.offset_std, "outliers": out.outliers,
+            "q_factor": out.q_factor, "q_factor_std": out.q_factor_std, "q_swing": out.q_swing,
         });
         if let Some(s) = source {
             add_source(&mut v, s);
@@ -262,7 +265,7 @@ impl<'a> Report<'a> {
             (true, None) => format!("{:>8}  ", "-"),
         };
         super::say(&format!(
-            "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {:>12}  {:>8}  {:>8}  {glitch_col}{}{}",
+            "{:>7}  {:>5}  {:>18.4}  {:>10.4}  {effect_cols}{:>10.4e}  {:>12}  {:>8}  {:>8}  {:>8}  {:>8}  {glitch_col}{}{}",
             id,
             n,
             out.params[0],
@@ -270,6 +273,8 @@ impl<'a> Report<'a> {
             out.sigma[0],
             or_dash(out.offset),
             or_dash(out.offset_std),
+            q_or_dash(out.q_factor),
+            q_or_dash(out.q_factor_std),
             out.outliers,
             out.trust.as_str(),
             if reasons.is_empty() {
@@ -295,6 +300,22 @@ impl<'a> Report<'a> {
         }
         Ok(())
     }
+}
+
+/// A quality factor to 3 significant figures, `-` where there is none.
+fn q_or_dash(v: Option<f32>) -> String {
+    v.map_or_else(
+        || "-".to_string(),
+        |v| {
+            let decimals = (2 - magnitude(v)).clamp(0, 2) as usize;
+            format!("{v:.decimals$}")
+        },
+    )
+}
+
+/// The order of magnitude of `v` (0 for 1 to 9.9, 1 for 10 to 99, ...).
+fn magnitude(v: f32) -> i32 {
+    if v > 0.0 { v.log10().floor() as i32 } else { 0 }
 }
 
 /// A figure to 4 decimals, `-` where there is none yet.

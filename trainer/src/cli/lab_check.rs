@@ -38,6 +38,9 @@ pub struct Args {
     /// default the lab's 12 to 100 Hz with at least 12 samples a period).
     #[arg(long, value_delimiter = ',')]
     rates: Option<Vec<f64>>,
+    /// Durations, s: LO,HI (each recording's drawn uniformly).
+    #[arg(long, value_delimiter = ',', default_values_t = LabCheckConfig::default().seconds)]
+    seconds: Vec<f64>,
     /// Add a fourth dissipation in turn: viscous damping, drag and Coulomb
     /// friction together, at real rigs' sizes.
     #[arg(long)]
@@ -64,6 +67,10 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--offsets takes two angles, LO,HI");
     };
     anyhow::ensure!(o0 <= o1, "--offsets: LO <= HI");
+    let [d0, d1] = a.seconds[..] else {
+        anyhow::bail!("--seconds takes two durations, LO,HI");
+    };
+    anyhow::ensure!(0.0 < d0 && d0 < d1, "--seconds: 0 < LO < HI");
     let rates = match a.rates.as_deref() {
         None => None,
         Some(&[r0, r1]) if 0.0 < r0 && r0 <= r1 => Some([r0, r1]),
@@ -77,6 +84,7 @@ pub fn run(a: Args) -> Result<()> {
         offsets: [o0, o1],
         rates,
         mixed: a.mixed,
+        seconds: [d0, d1],
         ..LabCheckConfig::default()
     };
     anyhow::ensure!(cfg.recordings > 0, "--recordings must be at least 1");
@@ -98,7 +106,7 @@ pub fn run(a: Args) -> Result<()> {
         cfg.seed,
         a.weights.display(),
         labcheck::markdown(&figures)
-    );
+    ) + &trainer_core::quality::markdown(&trainer_core::quality::tables(&outcomes));
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir)?;
         let json = serde_json::json!({ "config": cfg, "figures": figures, "recordings": outcomes });

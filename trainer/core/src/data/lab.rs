@@ -179,6 +179,36 @@ impl LabSpec {
         self.rig.w2(LAB_G, self.length)
     }
 
+    /// The true swing over the recording's last period: half the range of
+    /// the true angle there, rad.
+    pub fn end_swing(&self) -> f64 {
+        let motion = self.motion();
+        let period = 2.0 * std::f64::consts::PI / self.w2().sqrt();
+        let last = ((period / H).ceil() as usize).clamp(1, motion.len());
+        let tail = &motion[motion.len() - last..];
+        let (lo, hi) = tail
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        0.5 * (hi - lo)
+    }
+
+    /// Half swings of the true angle with an amplitude (half the range
+    /// between their turning points) of at least `a`, rad.
+    pub fn half_swings_above(&self, a: f64) -> usize {
+        let motion = self.motion();
+        let turns: Vec<f64> = motion
+            .windows(3)
+            .filter(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0)
+            .map(|w| w[1])
+            .collect();
+        turns
+            .windows(2)
+            .filter(|w| 0.5 * (w[1] - w[0]).abs() >= a)
+            .count()
+    }
+
     /// Draws the recording of `case` from `rng`.
     pub fn draw(case: Case, rng: &mut ChaCha8Rng) -> LabSpec {
         let rig = if rng.random_bool(0.6) {

@@ -1,5 +1,6 @@
 //! `estimate --plot`: one rollout's estimate over time. The length with
-//! its 2-std band, the effect coefficient when the blob has one, and the
+//! its 2-std band, the effect coefficient when the blob has one, the
+//! quality factor with its band, and the
 //! measured angle; the spans where the verdict is not `trusted`, or the
 //! estimate is held over a swing too small to read, are shaded and
 //! labelled with their reasons.
@@ -157,13 +158,54 @@ impl<'t> Panels<'t> {
     /// The panel of parameter `k`, labelled `label`: its estimate with
     /// the 2-std band over the shaded spans.
     fn param(&self, area: &Area<'_>, k: usize, label: &str) -> Result<()> {
-        let pts: Vec<(f64, f64, f64)> = self
+        let pts: Vec<(f64, f64, f64, bool)> = self
             .trace
             .steps
             .iter()
-            .map(|(t, o)| (*t, f64::from(o.params[k]), 2.0 * f64::from(o.param_std[k])))
+            .map(|(t, o)| {
+                let settled = !matches!(o.trust, Trust::Pending);
+                (
+                    *t,
+                    f64::from(o.params[k]),
+                    2.0 * f64::from(o.param_std[k]),
+                    settled,
+                )
+            })
             .collect();
-        let (y0, y1) = self.settled_bounds(&pts);
+        self.band_panel(area, &pts, label)
+    }
+
+    /// The panel of the quality factor where it is read, with its 2-std
+    /// band (its axis from 0).
+    fn q(&self, area: &Area<'_>) -> Result<()> {
+        let pts: Vec<(f64, f64, f64, bool)> = self
+            .trace
+            .steps
+            .iter()
+            .filter_map(|(t, o)| {
+                let (q, std) = (o.q_factor?, o.q_factor_std?);
+                Some((*t, f64::from(q), 2.0 * f64::from(std), true))
+            })
+            .collect();
+        self.band_panel(area, &pts, "quality factor Q")
+    }
+
+    /// A panel of an estimate, `(t, value, 2 std, settled)` at each step,
+    /// labelled `label`: the line in its band over the shaded spans, the
+    /// y axis following the settled steps (the first steps' wide band
+    /// would hide the estimate).
+    fn band_panel(
+        &self,
+        area: &Area<'_>,
+        pts: &[(f64, f64, f64, bool)],
+        label: &str,
+    ) -> Result<()> {
+        let shown: Vec<&(f64, f64, f64, bool)> = if pts.iter().any(|p| p.3) {
+            pts.iter().filter(|p| p.3).collect()
+        } else {
+            pts.iter().collect()
+        };
+        let (y0, y1) = bounds(shown.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]));
         let frame = TimeFrame {
             caption: None,
             y_desc: label,
@@ -171,26 +213,9 @@ impl<'t> Panels<'t> {
         };
         let mut chart = time_chart(area, frame, self.t.clone(), y0..y1)?;
         self.shade(&mut chart, [y0, y1])?;
+        let pts: Vec<(f64, f64, f64)> = pts.iter().map(|p| (p.0, p.1, p.2)).collect();
         band_and_estimate(&mut chart, &pts, [y0, y1])?;
         crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)
-    }
-
-    /// The y axis of a parameter's panel, `(t, estimate, 2 std)` at each
-    /// step: it follows the estimate once the verdict is given (the first
-    /// steps' wide band would hide it).
-    fn settled_bounds(&self, pts: &[(f64, f64, f64)]) -> (f64, f64) {
-        let settled: Vec<&(f64, f64, f64)> = pts
-            .iter()
-            .zip(&self.trace.steps)
-            .filter(|(_, s)| !matches!(s.1.trust, Trust::Pending))
-            .map(|(p, _)| p)
-            .collect();
-        let shown: Vec<&(f64, f64, f64)> = if settled.is_empty() {
-            pts.iter().collect()
-        } else {
-            settled
-        };
-        bounds(shown.iter().flat_map(|p| [p.1 - p.2, p.1 + p.2]))
     }
 
     /// The panel of the measured angle over the shaded spans.
@@ -275,7 +300,7 @@ fn band_and_estimate(
 /// parameter, the angle's panel and the key.
 pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
     let panels = Panels::new(trace);
-    let rows = 2 + usize::from(trace.effect.is_some());
+    let rows = 3 + usize::from(trace.effect.is_some());
     // The key: one line per verdict, below the panels.
     let key_lines = (panels.labels.len() + 1).min(KEY_LINES);
     let root = png(path, (1400, 260 * rows as u32 + 50 + 22 * key_lines as u32))?;
@@ -292,6 +317,7 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
     if let Some((name, unit)) = trace.effect {
         panels.param(&areas[1], 1, &format!("{name} ({unit})"))?;
     }
+    panels.q(&areas[rows - 2])?;
     panels.theta(&areas[rows - 1])?;
     panels.key(&foot)?;
     root.present().map_err(err)
@@ -324,6 +350,9 @@ mod tests {
             innovation: None,
             outlier: false,
             outliers: 0,
+            q_factor: None,
+            q_factor_std: None,
+            q_swing: None,
         }
     }
 
