@@ -100,6 +100,9 @@ pub struct RecordingSwings {
     pub diagnosis: Option<energy::SwingDiagnosis>,
     /// The length its period gives, with the diagnosis.
     pub length: Option<PeriodLength>,
+    /// The quality factor at the last swing, from the dissipation named
+    /// ([`crate::quality::q_of`]; `None` where none is named).
+    pub q_factor: Option<f64>,
     /// Why there is no diagnosis, otherwise.
     pub error: Option<String>,
 }
@@ -157,6 +160,7 @@ pub fn diagnose_one(
         Ok(d) => RecordingSwings {
             source: source.to_string(),
             length: PeriodLength::from_w(rig, d.w, gravity),
+            q_factor: q_factor(&d),
             diagnosis: Some(d),
             error: None,
         },
@@ -164,9 +168,28 @@ pub fn diagnose_one(
             source: source.to_string(),
             diagnosis: None,
             length: None,
+            q_factor: None,
             error: Some(format!("{e:#}")),
         },
     }
+}
+
+/// The quality factor at the diagnosis's last amplitude from the
+/// dissipation it names; `None` where it names none.
+fn q_factor(d: &energy::SwingDiagnosis) -> Option<f64> {
+    let effects: Vec<crate::physics::Effect> = d
+        .effects
+        .iter()
+        .filter(|t| {
+            matches!(
+                t.name,
+                EffectKind::Viscous | EffectKind::Drag | EffectKind::Coulomb
+            )
+        })
+        .map(|t| crate::physics::Effect::new(t.name, t.coefficient))
+        .collect();
+    let q = crate::quality::q_of(&effects, d.w, d.amplitude[1]);
+    (!effects.is_empty() && q.is_finite() && q > 0.0).then_some(q)
 }
 
 /// Diagnoses every recording and combines their verdicts; an error when
@@ -278,6 +301,9 @@ pub fn summary(d: &Diagnosis) -> String {
                         l.length_m,
                         l.simple_length_m
                     ));
+                }
+                if let Some(q) = r.q_factor {
+                    s.push_str(&format!(", Q {q:.0} at {:.3} rad", x.amplitude[1]));
                 }
                 s.push_str(")\n");
                 for e in &x.effects {
