@@ -9,8 +9,7 @@
 
 use estimator::Model;
 use host_tests::rig_blob;
-use trainer_core::labcheck::{self, LabCheckConfig};
-use trainer_core::quality;
+use trainer_core::labcheck::{self, LabCheckConfig, quality};
 
 #[test]
 fn the_rig_blob_reads_q_within_the_bars() {

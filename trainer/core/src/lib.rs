@@ -25,6 +25,5 @@ pub mod peer;
 pub mod physics;
 pub mod plot;
 pub mod protocol;
-pub mod quality;
 pub mod reference;
 pub mod track;

@@ -106,7 +106,7 @@ pub fn run(a: Args) -> Result<()> {
         cfg.seed,
         a.weights.display(),
         labcheck::markdown(&figures)
-    ) + &trainer_core::quality::markdown(&trainer_core::quality::tables(&outcomes));
+    ) + &labcheck::quality::markdown(&labcheck::quality::tables(&outcomes));
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir)?;
         let json = serde_json::json!({ "config": cfg, "figures": figures, "recordings": outcomes });

@@ -101,7 +101,7 @@ pub struct RecordingSwings {
     /// The length its period gives, with the diagnosis.
     pub length: Option<PeriodLength>,
     /// The quality factor at the last swing, from the dissipation named
-    /// ([`crate::quality::q_of`]; `None` where none is named).
+    /// ([`crate::physics::quality::q_of`]; `None` where none is named).
     pub q_factor: Option<f64>,
     /// Why there is no diagnosis, otherwise.
     pub error: Option<String>,
@@ -188,7 +188,7 @@ fn q_factor(d: &energy::SwingDiagnosis) -> Option<f64> {
         })
         .map(|t| crate::physics::Effect::new(t.name, t.coefficient))
         .collect();
-    let q = crate::quality::q_of(&effects, d.w, d.amplitude[1]);
+    let q = crate::physics::quality::q_of(&effects, d.w, d.amplitude[1]);
     (!effects.is_empty() && q.is_finite() && q > 0.0).then_some(q)
 }
 

@@ -11,6 +11,7 @@
 //! [`RigPhysics`].
 
 pub mod effect;
+pub mod quality;
 mod rig;
 
 pub use effect::{Effect, EffectKind, EffectRange};

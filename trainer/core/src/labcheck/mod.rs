@@ -36,6 +36,8 @@ use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 use crate::protocol::WINDOW;
 use crate::track::track_each;
 
+pub mod quality;
+
 /// How the recordings are drawn.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct LabCheckConfig {
@@ -187,12 +189,12 @@ pub struct Outcome {
     pub end_swing: f64,
     /// Swing periods recorded.
     pub periods: f64,
-    /// The true quality factor ([`crate::quality::q_of`]) at the swing
+    /// The true quality factor ([`crate::physics::quality::q_of`]) at the swing
     /// the blob's is read at (at `end_swing` where it gives none).
     pub q_true: f64,
     /// The peer's `omega / c` at the end, where its `c` is positive.
     pub peer_q: Option<f64>,
-    /// Half swings of the true angle of at least [`crate::quality::MIN_SWING`].
+    /// Half swings of the true angle of at least [`quality::MIN_SWING`].
     pub readable_halves: usize,
 }
 
@@ -262,13 +264,13 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         out.push(Outcome {
             end_swing,
             periods: spec.duration * omega / (2.0 * std::f64::consts::PI),
-            q_true: crate::quality::q_of(
+            q_true: crate::physics::quality::q_of(
                 &spec.effects,
                 omega,
                 end.q_swing.map_or(end_swing, f64::from),
             ),
             peer_q,
-            readable_halves: spec.half_swings_above(crate::quality::MIN_SWING),
+            readable_halves: spec.half_swings_above(quality::MIN_SWING),
             effect: name.into(),
             coefficient: effect.coefficient,
             length: spec.length,
@@ -654,6 +656,9 @@ mod tests {
             rate_ratio: None,
             consistency: None,
             held: false,
+            q_factor: None,
+            q_factor_std: None,
+            q_swing: None,
         }
     }
 
@@ -682,6 +687,11 @@ mod tests {
             end,
             peer_first: peer.clone(),
             peer_end: peer,
+            end_swing: 0.2,
+            periods: 15.0,
+            q_true: 80.0,
+            peer_q: Some(80.0),
+            readable_halves: 30,
         }
     }
 
