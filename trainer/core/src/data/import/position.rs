@@ -123,24 +123,22 @@ fn fit_arc(x: &[f64], y: &[f64]) -> Result<[f64; 2], String> {
     Ok(c)
 }
 
+/// Why a track gives no pivot.
+const ON_A_LINE: &str = "the bob's x, y lie on a line, not an arc: give the pivot (--pivot X,Y)";
+
 /// Kasa's fit over the points `keep` allows.
 fn kasa(x: &[f64], y: &[f64], keep: &[bool]) -> Result<[f64; 2], String> {
     // Centred and scaled for the normal equations' conditioning.
     let n = keep.iter().filter(|k| **k).count() as f64;
-    let mx = x
-        .iter()
-        .zip(keep)
-        .filter(|(_, k)| **k)
-        .map(|(v, _)| v)
-        .sum::<f64>()
-        / n;
-    let my = y
-        .iter()
-        .zip(keep)
-        .filter(|(_, k)| **k)
-        .map(|(v, _)| v)
-        .sum::<f64>()
-        / n;
+    let mean_kept = |v: &[f64]| -> f64 {
+        v.iter()
+            .zip(keep)
+            .filter(|(_, k)| **k)
+            .map(|(v, _)| v)
+            .sum::<f64>()
+            / n
+    };
+    let (mx, my) = (mean_kept(x), mean_kept(y));
     let scale = x
         .iter()
         .zip(y)
@@ -158,7 +156,7 @@ fn kasa(x: &[f64], y: &[f64], keep: &[bool]) -> Result<[f64; 2], String> {
         .try_inverse()
         .map(|inv| inv * atb)
         .filter(|s| s.iter().all(|v| v.is_finite()))
-        .ok_or("the bob's x, y lie on a line, not an arc: give the pivot (--pivot X,Y)")?;
+        .ok_or(ON_A_LINE)?;
     let (cx, cy) = (-sol[0] / 2.0, -sol[1] / 2.0);
     if cx.hypot(cy) > 1e3 {
         return Err(
