@@ -176,6 +176,30 @@ fn the_no_panic_link_check_catches_a_panic() {
     );
 }
 
+/// The firmware's quality factor and its std (`hex`, NaN for none)
+/// against the host's `h`, each within `tol`: the differences of those
+/// the host has.
+fn quality_factor_differences(
+    line: &str,
+    hex: &[&str],
+    h: &estimator::StepOutput,
+    tol: impl Fn(f32) -> f32,
+) -> Vec<f32> {
+    let mut out = Vec::new();
+    for (hex, hv) in hex.iter().zip([h.q_factor, h.q_factor_std]) {
+        let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
+        match hv {
+            None => assert!(fv.is_nan(), "{line}: firmware {fv}, host none"),
+            Some(hv) => {
+                let d = (fv - hv).abs();
+                assert!(d <= tol(hv), "{line}: firmware Q {fv} host {hv}");
+                out.push(d);
+            }
+        }
+    }
+    out
+}
+
 #[test]
 fn firmware_in_qemu_matches_the_host() {
     if !have_qemu() {
@@ -266,19 +290,10 @@ fn firmware_in_qemu_matches_the_host() {
                 worst = worst.max(d);
                 compared += 1;
             }
-            // The quality factor and its std: NaN for none.
-            for (hex, hv) in w[10..12].iter().zip([h.q_factor, h.q_factor_std]) {
-                let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
-                match hv {
-                    None => assert!(fv.is_nan(), "{line}: firmware {fv}, host none"),
-                    Some(hv) => {
-                        q_seen += 1;
-                        let d = (fv - hv).abs();
-                        assert!(d <= tol(hv), "{line}: firmware Q {fv} host {hv}");
-                        worst = worst.max(d);
-                        compared += 1;
-                    }
-                }
+            for d in quality_factor_differences(line, &w[10..12], &h, tol) {
+                q_seen += 1;
+                worst = worst.max(d);
+                compared += 1;
             }
             assert_eq!(w[12], h.trust.as_str(), "{line}");
             assert_eq!(w[13], reasons_token(&h.trust), "{line}");
