@@ -307,6 +307,13 @@ fn firmware_in_qemu_matches_the_host() {
     // The rig's string is read long enough for its quality factor.
     assert!(q_seen > 0, "no quality factor compared");
 
+    report_sizes_and_costs(&lines, compared, worst);
+}
+
+/// The firmware's sizes and instruction counts, from its `lines`, said on
+/// stderr after the `compared` values (the `worst` difference); the
+/// estimator's state held to 4 KiB.
+fn report_sizes_and_costs(lines: &[&str], compared: usize, worst: f32) {
     let sizes = lines.iter().find(|l| l.starts_with("sizes")).unwrap();
     let est_bytes: usize = field(sizes, "estimator").parse().unwrap();
     assert!(est_bytes <= 4096, "estimator state {est_bytes} B > 4 KiB");
