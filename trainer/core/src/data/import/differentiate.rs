@@ -77,13 +77,10 @@ fn savitzky_golay(theta: &[f64], m: usize, time: impl Fn(usize) -> f64) -> (Vec<
         }
         if w == 0 {
             // Fewer than three samples: a one-sided difference.
-            let (d, h) = if i == 0 {
-                (
-                    theta.get(1).map_or(0.0, |b| b - theta[0]),
-                    time(1) - time(0),
-                )
-            } else {
-                (theta[i] - theta[i - 1], time(i) - time(i - 1))
+            let (d, h) = match i {
+                _ if n < 2 => (0.0, 0.0),
+                0 => (theta[1] - theta[0], time(1) - time(0)),
+                _ => (theta[i] - theta[i - 1], time(i) - time(i - 1)),
             };
             rate.push(if h > 0.0 { d / h } else { 0.0 });
             continue;

@@ -70,7 +70,13 @@ pub fn integrate(t: &[f64], axes: &[Vec<f64>], names: &[String]) -> Result<Integ
 /// around it.
 pub fn detrend(t: &[f64], w: &[f64], window: f64) -> (Vec<f64>, Vec<f64>) {
     let phi = cumulative(t, w);
-    let window = window.min(t[t.len() - 1] - t[0]);
+    let span = t[t.len() - 1] - t[0];
+    // Never wider than the recording (nor NaN: a clamp's bounds must be ordered).
+    let window = if window > 0.0 && window < span {
+        window
+    } else {
+        span
+    };
     let trend = |v: &[f64]| boxcar(t, &boxcar(t, v, window), window);
     let theta = phi.iter().zip(trend(&phi)).map(|(p, d)| p - d).collect();
     let rate = w.iter().zip(trend(w)).map(|(v, d)| v - d).collect();

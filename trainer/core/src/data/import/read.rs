@@ -1035,4 +1035,36 @@ mod tests {
         .unwrap();
         assert_eq!((runs[0].0.t.len(), runs[0].1.repeated), (3, 1));
     }
+
+    /// Odd files in every layout end in a recording or an error, never a
+    /// panic: a header alone, one row, two, a flat rate, a position that
+    /// does not move, NaN everywhere, ragged rows, a rate with a swing of
+    /// two samples.
+    #[test]
+    fn odd_files_end_in_a_result_or_an_error() {
+        let texts = [
+            "t,theta\n",
+            "t,theta\n0,1\n",
+            "t,theta\n0,1\n1,2\n",
+            "\"Time (s)\",\"Gyroscope x (rad/s)\"\n0,0.1\n0.1,0.1\n0.2,0.1\n",
+            "\"Time (s)\",\"Gyroscope z (rad/s)\"\n0,1\n0.1,-1\n0.2,1\n0.3,-1\n",
+            "mass_A\nt\tx\ty\n0\t1\t1\n0.1\t1\t1\n0.2\t1\t1\n",
+            "mass_A\nt\tx\ty\n0\t0\t-1\n0.1\t0.1\t-0.99\n",
+            "t,theta\nNaN,NaN\nNaN,NaN\n",
+            "t,theta,omega\n0,1\n0.1\n0.2,1,2,3\n",
+            "[1, 2, 3]\n[2, 3]\n",
+            "a;b\n1;2\n",
+        ];
+        let opts = ImportOptions::default();
+        for text in texts {
+            let Ok(table) = Table::parse(Path::new("odd.csv"), text) else {
+                continue;
+            };
+            if let Ok(runs) = parse_runs(&table, &opts) {
+                for (rec, _) in runs {
+                    let _ = super::super::to_rollout(&rec, 1, &opts);
+                }
+            }
+        }
+    }
 }
