@@ -11,9 +11,13 @@ use super::RecordingArgs;
 /// Turns measured recordings into the project's CSV (rollouts 1, 2, ...).
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Recordings: the rotary-encoder logger's format, or a table with a
-    /// header line (comma, tab or semicolon; name its columns with
-    /// --time-column, --angle-column, --rate-column).
+    /// Recordings: a lab tool's export as it is (phyphox, also its .zip
+    /// or .xlsx; Tracker; Vernier; PASCO; an IMU logger's lists; the
+    /// rotary-encoder logger), or any table with a header line (comma,
+    /// tab or semicolon; name its columns with --time-column,
+    /// --angle-column, --rate-column). A rate only is integrated; a
+    /// tracked x, y is read about the pivot (--pivot); several runs or
+    /// releases become rollouts (docs/import.md).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output CSV (a JSON sidecar is written beside it).
