@@ -5,7 +5,7 @@
 //! Of the recordings of at least 20 periods whose swing makes 16 half
 //! swings of 0.03 rad or more, `Q` within 25% of the truth on at least
 //! 90%, and the truth within 2 standard deviations on at least 90%
-//! (measured: 196 and 194 of 210, docs/damping.md).
+//! (measured: 203 and 197 of 210, docs/damping.md).
 
 use estimator::Model;
 use host_tests::rig_blob;

@@ -7,8 +7,10 @@
 //! one before. A swing that decays as `a ~ exp(-gamma t)` has
 //! `Q = omega / (2 gamma)`, `omega = pi / d` its angular frequency. The
 //! decay rate `gamma` is minus the slope of `ln a` over time, fitted by
-//! least squares with exponential forgetting ([`FORGET`] a half swing,
-//! about [`MEMORY`] half swings of memory): the sums `S0 = sum w`,
+//! least squares with exponential forgetting (a memory of [`MEMORY`] half
+//! swings, or a sixth of those read so far where that is more, so that
+//! over a long recording the fit's mean age is that of its last third,
+//! where a swing's envelope is read): the sums `S0 = sum w`,
 //! `S1 = sum w tau`, `S2 = sum w tau^2`, `Sy = sum w y`, `Sty = sum w tau y`,
 //! `Syy = sum w y^2` over the half swings so far, `tau` their times from
 //! the latest, `y = ln a`, `w` the forgetting's weight. A new half swing
@@ -25,12 +27,22 @@
 //! swing dies down, and the forgetting follows them: the `Q` read is at
 //! the swing `exp(Sy / S0)`, the memory's mean, which is reported with it.
 
-/// The weight a half swing keeps for each one after it.
-pub(crate) const FORGET: f32 = 1.0 - 1.0 / MEMORY;
-/// Half swings of memory (`1 / (1 - FORGET)`).
+/// The least memory, half swings: a half swing keeps `1 - 1 / memory` of
+/// its weight for each one after it.
 pub(crate) const MEMORY: f32 = 40.0;
+/// The share of the half swings read so far the memory grows to (the
+/// mean age of the last third's).
+pub(crate) const MEMORY_SHARE: f32 = 1.0 / 6.0;
 /// Half swings read before a `Q` is given.
 pub(crate) const MIN_HALVES: u16 = 8;
+/// The largest relative standard deviation of a `Q` that replaces one
+/// read more sharply (the last such is held while the swing dies into
+/// the noise, with the swing it was read at: there the tracker's noise
+/// lifts each amplitude and flattens the decay). Chosen on lab recordings
+/// of seeds 29 (60 to 120 s) and 37 (10 to 20 min): at 0.25, 0.12 and
+/// 0.08, `Q` within 25% on 93%, 96% and 96% of seed 29's and 80%, 89%
+/// and 92% of seed 37's (docs/damping.md).
+pub(crate) const HOLD: f32 = 0.08;
 /// The smallest amplitude read, rad: below it a tracker's noise and a
 /// rig at rest make half swings of their own.
 pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
@@ -95,7 +107,8 @@ impl Decay {
             return;
         }
         self.since = 0.0;
-        let f = FORGET;
+        let memory = MEMORY.max(MEMORY_SHARE * f32::from(self.n));
+        let f = 1.0 - 1.0 / memory;
         let (s0, s1) = (self.s0, self.s1);
         self.s2 = f * (self.s2 - 2.0 * d * s1 + d * d * s0);
         self.s1 = f * (s1 - d * s0);
@@ -110,7 +123,13 @@ impl Decay {
             f * self.half + (1.0 - f) * length
         };
         self.n = self.n.saturating_add(1);
-        self.q = self.fit();
+        // A fit no better than HOLD keeps the last one that was, where
+        // there is one: a swing dying into the noise reads nothing new.
+        let fit = self.fit();
+        let sharp = |q: &Option<(f32, f32, f32)>| q.is_some_and(|(q, std, _)| std <= HOLD * q);
+        if sharp(&fit) || !sharp(&self.q) {
+            self.q = fit;
+        }
     }
 
     /// `Q` and its standard deviation from the sums (module docs); `None`
