@@ -154,6 +154,7 @@ impl Estimator<'_> {
         let params = read.map(|r| r.value);
         let param_std = read.map(|r| r.std);
         let (offset, offset_std) = self.centre.offset();
+        let (q_factor, q_factor_std, q_swing) = self.decay.q_factor();
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
         let unevenness = self.swing.most_uneven();
@@ -211,9 +212,9 @@ impl Estimator<'_> {
             innovation: self.innovation,
             outlier: self.outlier,
             outliers: self.outliers,
-            q_factor: self.decay.q_factor().0,
-            q_factor_std: self.decay.q_factor().1,
-            q_swing: self.decay.q_factor().2,
+            q_factor,
+            q_factor_std,
+            q_swing,
         }
     }
 

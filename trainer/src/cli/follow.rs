@@ -16,8 +16,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use estimator::{Estimator, Model};
 use trainer_core::data::import::Stream;
-use trainer_core::data::model_steps;
-use trainer_core::track::Tracked;
+use trainer_core::track::Run;
 
 use super::estimate::{Args, Report};
 
@@ -52,8 +51,7 @@ pub fn run(a: &Args, source: &Path, model: &Model<'_>, fresh: &Estimator<'_>) ->
     let mut follow = Follow {
         stream: Stream::new(opts),
         est: None,
-        last: None,
-        tracked: None,
+        run: Run::default(),
         printed: 0,
         every: a.every,
         dt,
@@ -100,9 +98,7 @@ struct Follow<'m> {
     stream: Stream,
     /// Made at the first sample, told the source's interval.
     est: Option<Estimator<'m>>,
-    /// The last sample's time.
-    last: Option<f64>,
-    tracked: Option<Tracked>,
+    run: Run,
     /// Measurements at the last print.
     printed: usize,
     every: u64,
@@ -112,7 +108,7 @@ struct Follow<'m> {
 impl<'m> Follow<'m> {
     /// Measurements filtered.
     fn measured(&self) -> usize {
-        self.tracked.as_ref().map_or(0, |t| t.measured)
+        self.run.tracked.as_ref().map_or(0, |t| t.measured)
     }
 
     /// Filters the sample `x` at `t`; whether a print is due.
@@ -123,37 +119,19 @@ impl<'m> Follow<'m> {
         t: f64,
         x: [f64; 2],
     ) -> Result<bool> {
-        let state = [x[0] as f32, x[1] as f32];
-        let fail = |e: estimator::Error| anyhow::anyhow!("at t = {t} s: {e}");
         let est = match &mut self.est {
             Some(est) => est,
             None => self
                 .est
                 .insert(report.estimator(fresh, 1, self.stream.source())?),
         };
-        let mut predicted = self.tracked.as_ref().map_or(0, |t| t.predicted);
-        if let Some(prev) = self.last {
-            let steps = model_steps(&[prev, t], self.dt).map_err(|e| anyhow::anyhow!(e))?;
-            let s = steps.first().copied().unwrap_or(1);
-            if s > 1 {
-                est.skip(s - 1).map_err(fail)?;
-                predicted += u64::from(s - 1);
-            }
-        }
-        let out = est.step(&state).map_err(fail)?;
-        self.last = Some(t);
-        let measured = self.measured() + 1;
-        self.tracked = Some(Tracked {
-            out,
-            measured,
-            predicted,
-        });
+        let measured = self.run.sample(est, t, &x, self.dt)?.measured;
         Ok(measured as u64 % self.every == 0)
     }
 
     /// Prints the estimate so far as `estimate` prints a rollout's.
     fn print(&mut self, report: &Report<'_>, json: bool) -> Result<()> {
-        let Some(tracked) = &self.tracked else {
+        let Some(tracked) = &self.run.tracked else {
             return Ok(());
         };
         self.printed = tracked.measured;

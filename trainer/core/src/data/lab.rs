@@ -179,34 +179,29 @@ impl LabSpec {
         self.rig.w2(LAB_G, self.length)
     }
 
-    /// The true swing over the recording's last period: half the range of
-    /// the true angle there, rad.
-    pub fn end_swing(&self) -> f64 {
+    /// The true angle's swings, from one simulation: its swing over the
+    /// last period (half its range there, rad) and how many half swings
+    /// have an amplitude (half the range between their turning points) of
+    /// at least `floor`, rad.
+    pub fn true_swings(&self, floor: f64) -> (f64, usize) {
         let motion = self.motion();
         let period = 2.0 * std::f64::consts::PI / self.w2().sqrt();
         let last = ((period / H).ceil() as usize).clamp(1, motion.len());
-        let tail = &motion[motion.len() - last..];
-        let (lo, hi) = tail
+        let (lo, hi) = motion[motion.len() - last..]
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
                 (a.min(v), b.max(v))
             });
-        0.5 * (hi - lo)
-    }
-
-    /// Half swings of the true angle with an amplitude (half the range
-    /// between their turning points) of at least `a`, rad.
-    pub fn half_swings_above(&self, a: f64) -> usize {
-        let motion = self.motion();
         let turns: Vec<f64> = motion
             .windows(3)
             .filter(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0)
             .map(|w| w[1])
             .collect();
-        turns
+        let halves = turns
             .windows(2)
-            .filter(|w| 0.5 * (w[1] - w[0]).abs() >= a)
-            .count()
+            .filter(|w| 0.5 * (w[1] - w[0]).abs() >= floor)
+            .count();
+        (0.5 * (hi - lo), halves)
     }
 
     /// Draws the recording of `case` from `rng`.

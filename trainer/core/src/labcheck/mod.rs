@@ -258,7 +258,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
             anyhow::bail!("lab recording {k} has no dissipation");
         };
         let omega = spec.w2().sqrt();
-        let end_swing = spec.end_swing();
+        let (end_swing, readable_halves) = spec.true_swings(quality::MIN_SWING);
         let peer_omega = rig.w2(LAB_G, peer_end.length).sqrt();
         let peer_q = (peer_end.damping > 0.0).then(|| peer_omega / peer_end.damping);
         out.push(Outcome {
@@ -270,7 +270,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
                 end.q_swing.map_or(end_swing, f64::from),
             ),
             peer_q,
-            readable_halves: spec.half_swings_above(quality::MIN_SWING),
+            readable_halves,
             effect: name.into(),
             coefficient: effect.coefficient,
             length: spec.length,

@@ -40,28 +40,60 @@ pub fn track_each(
 ) -> anyhow::Result<Tracked> {
     let n = limit.unwrap_or(r.xs.len()).min(r.xs.len());
     anyhow::ensure!(n >= 1, "rollout {}: no samples", r.id);
-    let steps = model_steps(r.t.get(..n).unwrap_or(&r.t), dt)
-        .map_err(|e| anyhow::anyhow!("rollout {}: {e}", r.id))?;
-    let fail = |k: usize, e: estimator::Error| {
-        anyhow::anyhow!("rollout {}: at t = {} s: {e}", r.id, r.t[k])
-    };
-    let state = |x: &[f64; 2]| [x[0] as f32, x[1] as f32];
-    let mut out = est.step(&state(&r.xs[0])).map_err(|e| fail(0, e))?;
-    each(r.t[0], &out);
-    let mut predicted = 0u64;
-    for (k, (x, &s)) in r.xs[1..n].iter().zip(&steps).enumerate() {
-        if s > 1 {
-            est.skip(s - 1).map_err(|e| fail(k, e))?;
-            predicted += u64::from(s - 1);
-        }
-        out = est.step(&state(x)).map_err(|e| fail(k + 1, e))?;
-        each(r.t[k + 1], &out);
+    let mut run = Run::default();
+    for (t, x) in r.t.iter().zip(&r.xs).take(n) {
+        let out = run
+            .sample(est, *t, x, dt)
+            .map_err(|e| anyhow::anyhow!("rollout {}: {e}", r.id))?;
+        each(*t, &out.out);
     }
-    Ok(Tracked {
-        out,
-        measured: n,
-        predicted,
-    })
+    run.tracked
+        .ok_or_else(|| anyhow::anyhow!("rollout {}: no samples", r.id))
+}
+
+/// A run of the estimator over samples as they come: the last one's time
+/// stamp and the output so far (what `estimate --follow` steps, and
+/// [`track_each`] over a rollout).
+#[derive(Debug, Clone, Default)]
+pub struct Run {
+    /// The last sample's time stamp, s.
+    last: Option<f64>,
+    /// The output after it, with the samples filtered and the steps predicted.
+    pub tracked: Option<Tracked>,
+}
+
+impl Run {
+    /// Filters the sample `x` at `t` with `est`, predicting across the whole
+    /// steps of `dt` missing before it; an error names the stamps or the time.
+    pub fn sample(
+        &mut self,
+        est: &mut Estimator<'_>,
+        t: f64,
+        x: &[f64; 2],
+        dt: f64,
+    ) -> anyhow::Result<&Tracked> {
+        let fail = |e: estimator::Error| anyhow::anyhow!("at t = {t} s: {e}");
+        let (mut measured, mut predicted) = self
+            .tracked
+            .as_ref()
+            .map_or((0, 0), |k| (k.measured, k.predicted));
+        if let Some(prev) = self.last {
+            let s = model_steps(&[prev, t], dt).map_err(|e| anyhow::anyhow!(e))?;
+            let s = s.first().copied().unwrap_or(1);
+            if s > 1 {
+                est.skip(s - 1).map_err(fail)?;
+                predicted += u64::from(s - 1);
+            }
+        }
+        let out = est.step(&[x[0] as f32, x[1] as f32]).map_err(fail)?;
+        measured += 1;
+        self.last = Some(t);
+        Ok(self.tracked.insert(Tracked {
+            out,
+            measured,
+            predicted,
+        }))
+    }
 }
 
 pub mod figure;

@@ -21,6 +21,7 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
+use super::resample::interp;
 use super::rough_period;
 
 /// Swing periods the drift is averaged over.
@@ -125,8 +126,8 @@ fn boxcar(t: &[f64], v: &[f64], window: f64) -> Vec<f64> {
         .map(|&ti| {
             let a = (ti - window / 2.0).clamp(first, last - window);
             let b = a + window;
-            let mean = (at(t, &integral, b) - at(t, &integral, a)) / window;
-            let slope = (at(t, v, b) - at(t, v, a)) / window;
+            let mean = (interp(t, &integral, b) - interp(t, &integral, a)) / window;
+            let slope = (interp(t, v, b) - interp(t, v, a)) / window;
             mean + slope * (ti - (a + b) / 2.0)
         })
         .collect()
@@ -188,14 +189,6 @@ fn cumulative(t: &[f64], v: &[f64]) -> Vec<f64> {
         out.push(sum);
     }
     out
-}
-
-/// `f` (given at the stamps `t`) at `x` by linear interpolation.
-fn at(t: &[f64], f: &[f64], x: f64) -> f64 {
-    let k = t.partition_point(|&s| s <= x).clamp(1, t.len() - 1);
-    let (t0, t1) = (t[k - 1], t[k]);
-    let a = if t1 > t0 { (x - t0) / (t1 - t0) } else { 1.0 };
-    f[k - 1] + a * (f[k] - f[k - 1])
 }
 
 #[cfg(test)]

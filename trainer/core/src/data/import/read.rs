@@ -151,6 +151,26 @@ pub struct Layout {
 }
 
 impl Layout {
+    /// A measured angle from `table`, timed by its column `time` (`None`:
+    /// the sample rate), both units `unit`, nothing skipped; the rest to
+    /// fill in.
+    fn of(table: &Table, time: Option<usize>, unit: (Unit, UnitSource)) -> Layout {
+        Layout {
+            file: table.path.display().to_string(),
+            tool: None,
+            run: None,
+            time: time.map(|k| table.header[k].clone()),
+            angle: String::new(),
+            rate: None,
+            angle_unit: unit,
+            rate_unit: unit,
+            angle_from: AngleFrom::Measured,
+            skipped: 0,
+            release: None,
+            repeated: 0,
+        }
+    }
+
     /// The unit the angle is checked in ([`super::check_recording`]): the
     /// header's where it named one, else `given`; radians for an angle
     /// integrated or taken about a pivot.
@@ -391,19 +411,11 @@ pub fn parse_runs(
     opts: &ImportOptions,
 ) -> Result<Vec<(Recording, Layout)>, CsvError> {
     if table.header.first().map(|h| h.to_lowercase()).as_deref() == Some("trigger_start_deg") {
+        let degrees = (Unit::Degrees, UnitSource::Format);
         let layout = Layout {
-            file: table.path.display().to_string(),
             tool: Some("rotary-encoder logger"),
-            run: None,
-            time: None,
             angle: "one angle a line".into(),
-            rate: None,
-            angle_unit: (Unit::Degrees, UnitSource::Format),
-            rate_unit: (Unit::Degrees, UnitSource::Format),
-            angle_from: AngleFrom::Measured,
-            skipped: 0,
-            release: None,
-            repeated: 0,
+            ..Layout::of(table, None, degrees)
         };
         return Ok(vec![(parse_encoder(table)?, layout)]);
     }
@@ -415,7 +427,6 @@ pub fn parse_runs(
             let (rec, mut layout) = parse_run(&sub, opts)?;
             layout.tool = tool;
             layout.run = run;
-            layout.file = table.path.display().to_string();
             Ok((rec, layout))
         })
         .collect()
@@ -661,13 +672,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     let ti = find(table, opts.columns.time.as_deref(), &TIME_NAMES, "time")?;
     let holds = holds(table, opts, ti)?;
     if ti.is_none() && opts.rate.is_none() {
-        return Err(table.error(
-            0,
-            format!(
-                "no time column: name it (--time-column N) or give the sample rate (--rate HZ); the columns are {}",
-                columns_guessed(table)
-            ),
-        ));
+        return Err(no_time(table));
     }
     let cols: Vec<usize> = match &holds {
         Holds::Angle { angle, rate } => [Some(*angle), *rate].into_iter().flatten().collect(),
@@ -679,18 +684,9 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     let unit_of = |k: usize, fallback| column_unit(&table.header[k], opts, fallback);
     let options_unit = (opts.unit, UnitSource::Options);
     let mut layout = Layout {
-        file: String::new(),
-        tool: None,
-        run: None,
-        time: ti.map(header),
-        angle: String::new(),
-        rate: None,
-        angle_unit: options_unit,
-        rate_unit: options_unit,
-        angle_from: AngleFrom::Measured,
         skipped,
-        release: None,
         repeated,
+        ..Layout::of(table, ti, options_unit)
     };
     let recording = match holds {
         Holds::Angle { angle, rate } => {
@@ -768,6 +764,18 @@ fn angle_layout(
     layout.rate = rate.map(|k| table.header[k].clone());
 }
 
+/// The error for a table without a time column or `--rate`, naming its
+/// columns and what each could be.
+fn no_time(table: &Table) -> CsvError {
+    table.error(
+        0,
+        format!(
+            "no time column: name it (--time-column N) or give the sample rate (--rate HZ); the columns are {}",
+            columns_guessed(table)
+        ),
+    )
+}
+
 /// The columns a recording read as it is written is taken from: the time,
 /// the angle and the rate, with the radians per unit of each.
 #[derive(Debug, Clone)]
@@ -800,24 +808,11 @@ pub(crate) fn stream_columns(
         }
     };
     if time.is_none() && opts.rate.is_none() {
-        return Err(table.error(
-            0,
-            "no time column: name it (--time-column N) or give the sample rate (--rate HZ)",
-        ));
+        return Err(no_time(table));
     }
     let mut layout = Layout {
-        file: table.path.display().to_string(),
         tool: tool_of(&table.header, &table.preamble),
-        run: None,
-        time: time.map(|k| table.header[k].clone()),
-        angle: String::new(),
-        rate: None,
-        angle_unit: (opts.unit, UnitSource::Options),
-        rate_unit: (opts.unit, UnitSource::Options),
-        angle_from: AngleFrom::Measured,
-        skipped: 0,
-        release: None,
-        repeated: 0,
+        ..Layout::of(table, time, (opts.unit, UnitSource::Options))
     };
     angle_layout(table, opts, angle, rate, &mut layout);
     Ok(StreamColumns {
@@ -828,10 +823,57 @@ pub(crate) fn stream_columns(
     })
 }
 
-/// The rows' times (column `ti`, else the row's place at `rate` Hz) and
-/// the values of `cols`, skipping a row without one of them (empty or
-/// `NaN`) or whose time repeats the one before (each counted); times
-/// must not go back.
+/// What one row gives, as `import` reads it.
+pub(crate) enum RowRead {
+    /// Its time and the values of the columns asked for.
+    Values(f64, Vec<f64>),
+    /// No time or a value missing (empty or `NaN`): skipped.
+    Empty,
+    /// Its time repeats the one before: skipped.
+    Repeated,
+}
+
+/// Row `row` (the `place`-th of its table): its time (column `ti`, else
+/// its place at `rate` Hz) and the values of `cols`; a time going back
+/// from `prev` is an error naming the line, text where a number belongs
+/// too.
+pub(crate) fn read_row(
+    table: &Table,
+    row: &Row,
+    place: usize,
+    (ti, rate): (Option<usize>, Option<f64>),
+    cols: &[usize],
+    prev: Option<f64>,
+) -> Result<RowRead, CsvError> {
+    let time = match (ti, rate) {
+        (Some(k), _) => table.optional_number(row, k, "time")?,
+        (None, Some(r)) => Some(place as f64 / r),
+        (None, None) => None,
+    };
+    let mut got = Vec::with_capacity(cols.len());
+    for &k in cols {
+        got.push(table.optional_number(row, k, &bare(&table.header[k]))?);
+    }
+    let (Some(time), Some(got)) = (
+        time.filter(|v| v.is_finite()),
+        got.into_iter().collect::<Option<Vec<f64>>>(),
+    ) else {
+        return Ok(RowRead::Empty);
+    };
+    if got.iter().any(|v| v.is_nan()) {
+        return Ok(RowRead::Empty);
+    }
+    match prev {
+        Some(prev) if time == prev => Ok(RowRead::Repeated),
+        Some(prev) if time < prev => {
+            Err(table.error(row.line, format!("time {time} goes back (previous {prev})")))
+        }
+        _ => Ok(RowRead::Values(time, got)),
+    }
+}
+
+/// The rows' times and the values of `cols` ([`read_row`]), with the rows
+/// skipped without a value and with a repeated time counted.
 fn read_rows(
     table: &Table,
     ti: Option<usize>,
@@ -842,40 +884,15 @@ fn read_rows(
     let mut values = vec![Vec::new(); cols.len()];
     let (mut skipped, mut repeated) = (0, 0);
     for (place, row) in table.rows.iter().enumerate() {
-        let time = match (ti, rate) {
-            (Some(k), _) => table.optional_number(row, k, "time")?,
-            (None, Some(r)) => Some(place as f64 / r),
-            (None, None) => None,
-        };
-        let mut got = Vec::with_capacity(cols.len());
-        for &k in cols {
-            got.push(table.optional_number(row, k, &bare(&table.header[k]))?);
-        }
-        let (Some(time), Some(got)) = (
-            time.filter(|v| v.is_finite()),
-            got.into_iter().collect::<Option<Vec<f64>>>(),
-        ) else {
-            skipped += 1;
-            continue;
-        };
-        if got.iter().any(|v| v.is_nan()) {
-            skipped += 1;
-            continue;
-        }
-        if let Some(&prev) = t.last() {
-            if time == prev {
-                repeated += 1;
-                continue;
+        match read_row(table, row, place, (ti, rate), cols, t.last().copied())? {
+            RowRead::Values(time, got) => {
+                t.push(time);
+                for (v, x) in values.iter_mut().zip(got) {
+                    v.push(x);
+                }
             }
-            if time < prev {
-                return Err(
-                    table.error(row.line, format!("time {time} goes back (previous {prev})"))
-                );
-            }
-        }
-        t.push(time);
-        for (v, x) in values.iter_mut().zip(got) {
-            v.push(x);
+            RowRead::Empty => skipped += 1,
+            RowRead::Repeated => repeated += 1,
         }
     }
     if t.len() < 2 {

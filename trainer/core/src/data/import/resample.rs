@@ -132,7 +132,7 @@ fn on_stamp(t: &[f64], at: f64, tol: f64) -> bool {
 }
 
 /// Linear interpolation of `(t, v)` at `at` (`t` increasing, `at` inside).
-fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
+pub(super) fn interp(t: &[f64], v: &[f64], at: f64) -> f64 {
     let k = t.partition_point(|&x| x <= at).clamp(1, t.len() - 1);
     let (t0, t1) = (t[k - 1], t[k]);
     // Repeated stamps (a logger's resolution) have no slope between them.

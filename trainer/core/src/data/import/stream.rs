@@ -21,7 +21,7 @@
 
 use anyhow::Result;
 
-use super::read::{Layout, StreamColumns, stream_columns};
+use super::read::{Layout, RowRead, StreamColumns, read_row, stream_columns};
 use super::{ImportOptions, Recording, rollout_on_grid, rough_period};
 use crate::data::SourceMeta;
 use crate::data::table::{Table, is_data};
@@ -151,46 +151,27 @@ impl Stream {
         Ok(Vec::new())
     }
 
-    /// A row read into the recording, as `import` reads it.
+    /// A row read into the recording, as `import` reads it ([`read_row`]).
     fn take(&mut self, row: &crate::data::table::Row) -> Result<()> {
         let (Some(table), Some(c)) = (&self.table, &self.columns) else {
             return Ok(());
         };
         let place = self.rows;
         self.rows += 1;
-        let time = match (c.time, self.opts.rate) {
-            (Some(k), _) => table.optional_number(row, k, "time")?,
-            (None, Some(r)) => Some(place as f64 / r),
-            (None, None) => None,
-        };
-        let angle = table.optional_number(row, c.angle.0, "angle")?;
-        let rate = match c.rate {
-            Some((k, _)) => table.optional_number(row, k, "rate")?.map(Some),
-            None => Some(None),
-        };
-        let (Some(time), Some(angle), Some(rate)) = (time, angle, rate) else {
+        let cols: Vec<usize> = std::iter::once(c.angle.0)
+            .chain(c.rate.map(|r| r.0))
+            .collect();
+        let prev = self.rec.t.last().copied();
+        let RowRead::Values(time, got) =
+            read_row(table, row, place, (c.time, self.opts.rate), &cols, prev)?
+        else {
             self.skipped += 1;
             return Ok(());
         };
-        if !time.is_finite() || angle.is_nan() || rate.is_some_and(f64::is_nan) {
-            self.skipped += 1;
-            return Ok(());
-        }
-        if let Some(&prev) = self.rec.t.last() {
-            if time == prev {
-                self.skipped += 1;
-                return Ok(());
-            }
-            anyhow::ensure!(
-                time > prev,
-                "{}",
-                table.error(row.line, format!("time {time} goes back (previous {prev})"))
-            );
-        }
         self.origin.get_or_insert(time);
         self.rec.t.push(time);
-        self.rec.theta.push(angle * c.angle.1);
-        if let (Some(v), Some(r), Some((_, s))) = (&mut self.rec.theta_dot, rate, c.rate) {
+        self.rec.theta.push(got[0] * c.angle.1);
+        if let (Some(v), Some(r), Some((_, s))) = (&mut self.rec.theta_dot, got.get(1), c.rate) {
             v.push(r * s);
         }
         Ok(())
