@@ -37,6 +37,9 @@
 //!    (`score::recording`, one [`RecordingScore`] each).
 //! 8. Write `report.md` ([`markdown`]), `report.json` and the figure
 //!    (`report::write`, `report::figure`).
+//!
+//! With a rig blob to start from, the loop ends in a new rig blob
+//! instead ([`rig`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -54,6 +57,7 @@ pub mod forecast;
 mod models;
 mod parts;
 mod report;
+pub mod rig;
 mod score;
 
 pub use models::{NoiseChoice, R_CANDIDATES};

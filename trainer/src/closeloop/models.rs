@@ -134,24 +134,7 @@ fn train_and_export(
 ) -> Result<(PathBuf, NoiseChoice)> {
     let dt = cfg.dt;
     let run = dir.join("run");
-    let paths = RunPaths::new(&run);
-    let done: Option<RunState> = std::fs::read_to_string(&paths.state)
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok());
-    let same: bool = std::fs::read_to_string(&paths.config)
-        .ok()
-        .and_then(|s| serde_json::from_str::<TrainConfig>(&s).ok())
-        .is_some_and(|c| c == cfg);
-    match done {
-        Some(s) if same && s.iteration >= cfg.iterations => {}
-        Some(_) if same => {
-            train::train_with(&run, cfg, true, bar)?;
-        }
-        _ => {
-            let _ = std::fs::remove_dir_all(&run);
-            train::train_with(&run, cfg, false, bar)?;
-        }
-    }
+    train_or_reuse(&run, cfg, bar)?;
     let blob = dir.join("model.kkf");
     // The first parts long enough for forecasts of their own (one after a
     // gap or a dying swing may not be); with none, every scale is refused
@@ -178,6 +161,31 @@ fn train_and_export(
             candidates,
         },
     ))
+}
+
+/// Trains the model of `cfg` into the run directory `run`, showing
+/// progress on `bar`: a finished training with the same config is
+/// reused, a killed one resumed, any other replaced.
+pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<()> {
+    let paths = RunPaths::new(run);
+    let done: Option<RunState> = std::fs::read_to_string(&paths.state)
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok());
+    let same: bool = std::fs::read_to_string(&paths.config)
+        .ok()
+        .and_then(|s| serde_json::from_str::<TrainConfig>(&s).ok())
+        .is_some_and(|c| c == cfg);
+    match done {
+        Some(s) if same && s.iteration >= cfg.iterations => {}
+        Some(_) if same => {
+            train::train_with(run, cfg, true, bar)?;
+        }
+        _ => {
+            let _ = std::fs::remove_dir_all(run);
+            train::train_with(run, cfg, false, bar)?;
+        }
+    }
+    Ok(())
 }
 
 /// A trained and exported model: its blob and the noise it was exported

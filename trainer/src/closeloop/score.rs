@@ -7,7 +7,7 @@ use anyhow::Result;
 use estimator::Model;
 
 use trainer_core::data::{self, Rollout};
-use trainer_core::physics::{Effect, Pendulum, RigPhysics};
+use trainer_core::physics::{Effect, Pendulum, Rig, RigPhysics};
 
 use super::parts::Part;
 use super::{CloseLoopOptions, RecordingScore, forecast};
@@ -39,17 +39,7 @@ pub(super) fn recording(
         )),
         None => None,
     };
-    // The physics at the swings' w (the declared rig's length).
-    let mut p = Pendulum::of(rig, rig.length(g, d.w * d.w));
-    p.g = g;
-    let physics_before = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
-    p.effects = d
-        .effects
-        .iter()
-        .filter(|e| e.name.is_dynamic())
-        .map(|e| Effect::new(e.name, e.coefficient))
-        .collect();
-    let physics_after = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    let [physics_before, physics_after] = physics(part, rig, g, dt)?;
     Ok(RecordingScore {
         rollout: r.id,
         source: source.clone(),
@@ -77,6 +67,25 @@ pub(super) fn recording(
         physics_before,
         physics_after,
     })
+}
+
+/// The physics' held-out scores of `part` at the swings' `w` (the rig
+/// `rig`'s length at gravity `g`, steps of `dt`): without effects, and
+/// with the diagnosed dynamic terms.
+pub(super) fn physics(part: &Part, rig: Rig, g: f64, dt: f64) -> Result<[forecast::Score; 2]> {
+    let (r, cut, d) = (&part.series, part.cut, &part.diagnosis);
+    let ctx = |e: anyhow::Error| e.context(format!("{}: the held-out part", part.source));
+    let mut p = Pendulum::of(rig, rig.length(g, d.w * d.w));
+    p.g = g;
+    let before = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    p.effects = d
+        .effects
+        .iter()
+        .filter(|e| e.name.is_dynamic())
+        .map(|e| Effect::new(e.name, e.coefficient))
+        .collect();
+    let after = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    Ok([before, after])
 }
 
 /// The measurements the filter sees before the first held-out forecast

@@ -202,11 +202,21 @@ pub fn export_lab(dir: &Path, out: &Path) -> Result<(ExportInfo, Vec<NoiseCandid
         seed: labcheck::TUNING_SEED,
         ..labcheck::LabCheckConfig::default()
     };
+    export_lab_tuned_on(dir, out, &cfg)
+}
+
+/// [`export_lab`] with the filter's noise scales chosen on the lab-like
+/// recordings of `cfg` (a blob for one rig: recordings around it).
+pub fn export_lab_tuned_on(
+    dir: &Path,
+    out: &Path,
+    cfg: &labcheck::LabCheckConfig,
+) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
     let pairs: Vec<(Option<f64>, f64)> = LAB_Q_CANDIDATES
         .iter()
         .flat_map(|&q| LAB_R_CANDIDATES.iter().map(move |&r| (Some(q), r)))
         .collect();
-    export_selecting_noise(dir, out, &pairs, |m| labcheck::misses(m, &cfg))
+    export_selecting_noise(dir, out, &pairs, |m| labcheck::misses(m, cfg))
 }
 
 /// A KLM run opened for export: its model loaded and `F` refitted over its
@@ -433,6 +443,9 @@ pub fn calibration_for(cfg: &TrainConfig) -> CalibrateConfig {
                 effect: cfg.effect.clone(),
                 draw: draw.clone(),
             }),
+            unevenness_floor: cfg
+                .unevenness_floor
+                .unwrap_or(CalibrateConfig::default().unevenness_floor),
             ..CalibrateConfig::default()
         },
         // The bilinear family on the protocol's rods, trained on lengths

@@ -124,6 +124,9 @@ impl Trainable for Bilinear {
             dec: Mlp::new(estimator::LATENT_DIM, cfg.hidden, 2, device),
         }
     }
+    fn from_mlps(enc: Mlp, dec: Mlp) -> Option<Self> {
+        Some(Bilinear { enc, dec })
+    }
     fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
         self.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin)
     }

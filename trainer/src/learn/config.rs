@@ -121,6 +121,16 @@ pub struct TrainConfig {
     pub length_reading: Reading,
     /// Trust: threshold = this factor x the largest sigma over training rollouts.
     pub trust_factor: f64,
+    /// A Koopman blob whose encoder and decoder (and normalisation) the
+    /// training starts from, instead of freshly drawn weights: a
+    /// fine-tuning (`learn::warm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warm_start: Option<std::path::PathBuf>,
+    /// Trust: the least largest unevenness the verdict lets pass (`None`:
+    /// the calibration's own floor). A blob made from another keeps that
+    /// one's, which real rigs were read with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unevenness_floor: Option<f64>,
 }
 
 impl Default for TrainConfig {
@@ -156,6 +166,8 @@ impl Default for TrainConfig {
             prior_std_length: 5.0,
             length_reading: Reading::Reciprocal,
             trust_factor: 1.5,
+            warm_start: None,
+            unevenness_floor: None,
         }
     }
 }

@@ -78,6 +78,11 @@ pub trait Trainable: Module + Sized {
     const PARTS: [&'static str; 3];
     /// A freshly initialised model for a config.
     fn init(cfg: &TrainConfig, device: &Device) -> Self;
+    /// The model made of a trained encoder and decoder (`None`: a model
+    /// that has none, the MLP regressor).
+    fn from_mlps(_enc: Mlp, _dec: Mlp) -> Option<Self> {
+        None
+    }
     /// The losses of one batch: windows `x` `[B, T, 2]`, parameters `p` `[B, 2]`.
     fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses;
 }
@@ -86,6 +91,9 @@ impl Trainable for Klm {
     const PARTS: [&'static str; 3] = ["rec", "pred", "lin"];
     fn init(cfg: &TrainConfig, device: &Device) -> Self {
         Klm::new(2, cfg.hidden, estimator::LATENT_DIM, device)
+    }
+    fn from_mlps(enc: Mlp, dec: Mlp) -> Option<Self> {
+        Some(Klm { enc, dec })
     }
     fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
         let p = (cfg.model == ModelKind::Klm).then_some(p);

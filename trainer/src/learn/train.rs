@@ -18,6 +18,7 @@ use super::bilinear::Bilinear;
 use super::config::{ModelKind, TrainConfig};
 use super::model::{Klm, Losses, Regressor, Trainable};
 use super::run::{Norm, RunPaths, RunState, device, load_model, training_data};
+use super::warm;
 
 /// Normalised windows and their parameters, ready to batch.
 pub struct Batcher {
@@ -279,7 +280,8 @@ fn resume_from<M: Trainable>(
 }
 
 /// A fresh run of `cfg` on `ds` in `dir`: its config and the log's header
-/// written, the backend seeded, the model initialised.
+/// written, the backend seeded, the model initialised (or loaded from the
+/// blob it starts from, with that blob's normalisation).
 fn start_fresh<M: Trainable>(
     dir: &Path,
     paths: &RunPaths,
@@ -293,8 +295,15 @@ fn start_fresh<M: Trainable>(
         serde_json::to_string_pretty(&cfg)?.as_bytes(),
     )?;
     device.seed(cfg.seed);
-    let model = M::init(&cfg, device);
-    let norm = Norm::fit(ds);
+    let (model, norm) = match &cfg.warm_start {
+        Some(blob) => {
+            let (enc, dec, norm) = warm::mlps_of(blob, cfg.hidden, device)?;
+            let model = M::from_mlps(enc, dec)
+                .with_context(|| format!("a {:?} model does not start from a blob", cfg.model))?;
+            (model, norm)
+        }
+        None => (M::init(&cfg, device), Norm::fit(ds)),
+    };
     let state = RunState {
         iteration: 0,
         train_seconds: 0.0,

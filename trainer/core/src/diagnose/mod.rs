@@ -176,7 +176,7 @@ pub fn diagnose_one(
 
 /// The quality factor at the diagnosis's last amplitude from the
 /// dissipation it names; `None` where it names none.
-fn q_factor(d: &energy::SwingDiagnosis) -> Option<f64> {
+pub fn q_factor(d: &energy::SwingDiagnosis) -> Option<f64> {
     let effects: Vec<crate::physics::Effect> = d
         .effects
         .iter()

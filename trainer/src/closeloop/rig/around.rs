@@ -1,0 +1,212 @@
+//! The new rig blob's training config: lab-like draws around the
+//! recordings' first parts (their lengths, swings, source rates and
+//! dissipation, the named effect as the second parameter), started from
+//! the given blob's weights where the recordings lie within what it was
+//! trained on.
+
+use std::path::Path;
+
+use anyhow::Result;
+use trainer_core::data::import::Recording;
+use trainer_core::data::lab::Extras;
+use trainer_core::labcheck::{self, LabCheckConfig};
+use trainer_core::physics::{EffectKind, RigPhysics};
+
+use super::super::CloseLoopOptions;
+use super::super::effect;
+use super::super::parts::Part;
+use crate::learn::config::{ModelKind, TrainConfig};
+
+/// The new blob's lengths reach this factor below the smallest length the
+/// first parts' swings give and above the largest: a narrow range reads
+/// most accurately, and a unit's next recording lies well within it.
+pub const LENGTH_SPAN: f64 = 1.25;
+
+/// Lab-like rollouts drawn for a fine-tuning; one trained anew draws
+/// twice as many.
+pub const ROLLOUTS: usize = 1500;
+
+/// A training anew runs this many times the iterations of a fine-tuning.
+pub const ANEW_FACTOR: usize = 3;
+
+/// Largest angle offset the draws carry, rad (real rigs: 0.01 to 0.06).
+pub const OFFSET: f64 = 0.06;
+
+/// Highest source rate drawn, Hz: faster sources (an encoder's 1 kHz)
+/// import to the model's interval alike.
+pub const MAX_RATE: f64 = 100.0;
+
+/// The plan: the config, and why it starts where it does.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The new blob's training config.
+    pub cfg: TrainConfig,
+    /// Whether and why it starts from the given blob.
+    pub start: String,
+    /// Why its second parameter is the effect it is.
+    pub effect_reason: String,
+}
+
+/// The config around `parts` (recorded as `recs`) for a blob like the
+/// `given` one (its sidecar's config, the largest unevenness its verdict
+/// lets pass; the blob at `weights`): the given's verdict's tolerance
+/// for unevenness is kept as the least.
+pub fn plan(
+    parts: &[Part],
+    recs: &[(String, Recording)],
+    given: &TrainConfig,
+    given_unevenness: f32,
+    weights: &Path,
+    opts: &CloseLoopOptions,
+) -> Result<Plan> {
+    anyhow::ensure!(
+        given.model == ModelKind::Bilinear && given.lab.is_some(),
+        "{}: not a rig blob (a bilinear blob trained on lab-like draws, with its sidecar beside it)",
+        weights.display()
+    );
+    let mut cfg = given.clone();
+    cfg.seed = opts.seed;
+    cfg.rig = opts.rig;
+    cfg.lengths = lengths(parts, opts)?.to_vec();
+    cfg.theta0 = swings(parts);
+    let added = effect::add(parts, &cfg, &|_| {});
+    let chosen = added.range.as_ref().map(|e| e.name);
+    if let Some(c) = added.cfg {
+        cfg = c;
+    }
+    let mut draw = given.lab.clone().unwrap_or_default();
+    draw.extras = extras(parts, chosen, &draw.extras);
+    draw.rates = rates(recs, &draw.rates);
+    let fits = within(given, &cfg);
+    draw.rollouts = if fits { ROLLOUTS } else { 2 * ROLLOUTS };
+    cfg.lab = Some(draw);
+    cfg.iterations = if fits {
+        opts.iterations
+    } else {
+        ANEW_FACTOR * opts.iterations
+    };
+    cfg.warm_start = fits.then(|| weights.to_path_buf());
+    cfg.unevenness_floor = Some(f64::from(given_unevenness));
+    let start = if fits {
+        format!(
+            "fine-tuned from {} (its lengths and swings cover these)",
+            weights.display()
+        )
+    } else {
+        let [lo, hi] = given.length_range();
+        format!(
+            "trained anew: the recordings lie outside {}'s lengths ({lo:.2}..{hi:.2} m, {}) or swings (up to {:.2} rad)",
+            weights.display(),
+            given.rig.length_label(),
+            given.theta0[1]
+        )
+    };
+    Ok(Plan {
+        cfg,
+        start,
+        effect_reason: added.reason,
+    })
+}
+
+/// The lengths the first parts' swings give, widened by [`LENGTH_SPAN`].
+fn lengths(parts: &[Part], opts: &CloseLoopOptions) -> Result<[f64; 2]> {
+    let ls: Vec<f64> = parts
+        .iter()
+        .map(|p| opts.rig.length(opts.g, p.diagnosis.w * p.diagnosis.w))
+        .collect();
+    let lo = ls.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ls.iter().copied().fold(0.0, f64::max);
+    anyhow::ensure!(
+        lo.is_finite() && lo > 0.0,
+        "the swings give no length to train around"
+    );
+    Ok([lo / LENGTH_SPAN, hi * LENGTH_SPAN])
+}
+
+/// Release angles from half the smallest swing a first part ends with
+/// (the held-out part goes on losing amplitude) to 1.1 times the largest
+/// one starts with.
+fn swings(parts: &[Part]) -> [f64; 2] {
+    let end = parts
+        .iter()
+        .map(|p| p.diagnosis.amplitude[1])
+        .fold(f64::INFINITY, f64::min);
+    let start = parts
+        .iter()
+        .map(|p| p.diagnosis.amplitude[0])
+        .fold(0.0, f64::max);
+    let hi = (1.1 * start).min(0.95 * std::f64::consts::PI);
+    [(0.5 * end).clamp(0.03, hi), hi]
+}
+
+/// What real rigs add, around what the first parts show: an offset of up
+/// to [`OFFSET`], and drag and Coulomb friction where the diagnosis named
+/// them (each over half to 1.5 times its coefficients) unless it is the
+/// blob's own effect (`chosen`), else the given draw's.
+fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras {
+    let named = |kind: EffectKind, given: [f64; 2]| -> [f64; 2] {
+        if chosen == Some(kind) {
+            return [0.0, 0.0];
+        }
+        let cs: Vec<f64> = parts
+            .iter()
+            .flat_map(|p| &p.diagnosis.effects)
+            .filter(|e| e.name == kind && e.coefficient > 0.0)
+            .map(|e| e.coefficient)
+            .collect();
+        match cs.iter().copied().reduce(f64::min) {
+            Some(lo) => [0.5 * lo, 1.5 * cs.iter().copied().fold(lo, f64::max)],
+            None => given,
+        }
+    };
+    Extras {
+        offset: given.offset.max(OFFSET),
+        drag: named(EffectKind::Drag, given.drag),
+        coulomb: named(EffectKind::Coulomb, given.coulomb),
+        artefacts: given.artefacts,
+    }
+}
+
+/// The recordings' own source rates (their median interval), at most
+/// [`MAX_RATE`]; the given draw's where none can be read.
+fn rates(recs: &[(String, Recording)], given: &[f64]) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for (_, r) in recs {
+        let mut d: Vec<f64> = r.t.windows(2).map(|w| w[1] - w[0]).collect();
+        d.sort_by(f64::total_cmp);
+        let Some(&m) = d.get(d.len() / 2) else {
+            continue;
+        };
+        let rate = ((1.0 / m).round()).min(MAX_RATE);
+        if rate.is_finite() && rate > 0.0 && !out.contains(&rate) {
+            out.push(rate);
+        }
+    }
+    if out.is_empty() { given.to_vec() } else { out }
+}
+
+/// Whether `cfg`'s draws lie within what the `given` blob was trained on:
+/// its swings' frequencies and release angles (then a fine-tuning
+/// starts from weights that already read them).
+fn within(given: &TrainConfig, cfg: &TrainConfig) -> bool {
+    let w2 = |c: &TrainConfig, l: f64| c.rig.w2(c.g, l);
+    let [glo, ghi] = given.length_range();
+    let [lo, hi] = cfg.length_range();
+    // A longer pendulum swings slower: the given's slowest to its fastest.
+    let (gw_lo, gw_hi) = (w2(given, ghi), w2(given, glo));
+    let (w_lo, w_hi) = (w2(cfg, hi), w2(cfg, lo));
+    gw_lo <= w_lo && w_hi <= gw_hi && cfg.theta0[1] <= 1.05 * given.theta0[1]
+}
+
+/// The lab-like recordings the new blob's filter noise is chosen on:
+/// the lab-check's, at the plan's lengths and swings.
+pub fn tuning_set(cfg: &TrainConfig) -> LabCheckConfig {
+    LabCheckConfig {
+        seed: labcheck::TUNING_SEED,
+        recordings: 60,
+        lengths: cfg.length_range(),
+        swings: cfg.theta0,
+        seconds: [20.0, 40.0],
+        ..LabCheckConfig::default()
+    }
+}

@@ -1,0 +1,190 @@
+//! The loop ending in a rig blob (`koopman close-loop --weights BLOB`):
+//! [`close_loop_rig`] runs the steps, each in the module of its concern
+//! (`around`, `read`, `report`):
+//!
+//! 1. Read, split and diagnose the recordings as the loop does
+//!    (`super::parts`): the first [`super::FIT_SHARE`] of each is
+//!    diagnosed, the rest held out.
+//! 2. Plan the new blob (`around::plan`): lab-like draws around the
+//!    first parts' lengths, swings, source rates and dissipation, the
+//!    named effect (`super::effect`) as its second parameter; started
+//!    from the given blob's weights where they cover the recordings,
+//!    else trained anew.
+//! 3. Train it (`learn::train`, a progress bar, a time estimate first),
+//!    export it with its filter's noise chosen on lab-like recordings
+//!    around the plan, and calibrate its trust verdict on held-out draws
+//!    of the plan (`export::export_lab_tuned_on`).
+//! 4. Read each held-out part with the given blob (before) and the new
+//!    one (after): forecast error, the length against the period's, the
+//!    verdict, the effect against the diagnosis (`read::held_out`); the
+//!    physics without and with the diagnosed terms beside them.
+//! 5. Write `report.md` and `report.json` (`report`); the blob is
+//!    `OUT/rig.kkf` with its sidecar `OUT/rig.json`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use indicatif::ProgressBar;
+use serde::Serialize;
+
+use trainer_core::diagnose::energy::SwingDiagnosis;
+use trainer_core::physics::RigPhysics;
+
+use super::forecast::Score;
+use super::{CloseLoopOptions, models, parts, score};
+use crate::export;
+use crate::learn::config::TrainConfig;
+
+mod around;
+mod read;
+mod report;
+
+pub use around::{ANEW_FACTOR, LENGTH_SPAN};
+pub use read::BlobRead;
+pub use report::markdown;
+
+/// Seconds an iteration of a rig blob's training takes on the 2-core
+/// machine (128 windows of 128 steps, 64 wide), for the time estimate.
+pub const SECONDS_PER_ITERATION: f64 = 0.09;
+
+/// Seconds the rest takes there: drawing the rollouts, the export's
+/// choice of the filter's noise and the calibration.
+pub const SECONDS_BESIDE: f64 = 150.0;
+
+/// One recording, before and after.
+#[derive(Debug, Clone, Serialize)]
+pub struct RigRecording {
+    /// What it was imported from.
+    pub source: String,
+    /// Measurements: all used, and held out.
+    pub steps: [usize; 2],
+    /// The first part's diagnosis.
+    pub diagnosis: SwingDiagnosis,
+    /// The length the first part's swings give, m (the period's).
+    pub length_period: f64,
+    /// The given blob's reading of the held-out part.
+    pub before: BlobRead,
+    /// The new blob's.
+    pub after: BlobRead,
+    /// The physics at the swings' `w`: without effects, and with the
+    /// diagnosed dynamic terms.
+    pub physics: [Score; 2],
+}
+
+/// What the loop made and found.
+#[derive(Debug, Clone, Serialize)]
+pub struct RigLoopReport {
+    /// The blob the loop started from.
+    pub given: PathBuf,
+    /// The blob it wrote (its sidecar beside it).
+    pub blob: PathBuf,
+    /// Whether and why it was fine-tuned from the given one.
+    pub start: String,
+    /// Why its second parameter is the effect it is.
+    pub effect_reason: String,
+    /// Its training config.
+    pub config: TrainConfig,
+    /// The time estimated before training, s.
+    pub estimated_seconds: f64,
+    /// Per recording.
+    pub recordings: Vec<RigRecording>,
+    /// Wall time, s.
+    pub seconds: f64,
+}
+
+/// Runs the loop from the rig blob `weights` into `out`: the steps of the
+/// module docs, in order. The recordings are imported at the blob's
+/// interval.
+pub fn close_loop_rig(
+    inputs: &[PathBuf],
+    out: &Path,
+    weights: &Path,
+    opts: &CloseLoopOptions,
+) -> Result<RigLoopReport> {
+    let start = Instant::now();
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let say = |m: &str| {
+        if !opts.quiet {
+            eprintln!("close-loop: {m}");
+        }
+    };
+    let given_bytes =
+        std::fs::read(weights).with_context(|| format!("{}: cannot read", weights.display()))?;
+    let given = models::open(&given_bytes, &weights.display().to_string())?;
+    let mut opts = opts.clone();
+    opts.import.dt = f64::from(given.blob().body.dt);
+    // 1. Read, split, diagnose.
+    let (recs, ds) = parts::read_both(inputs, &opts.import)?;
+    let dt = ds.sidecar.dt;
+    let parts = parts::split_all(&recs, &ds, opts.import.start, &say)?;
+    // 2. The plan.
+    let plan = around::plan(
+        &parts,
+        &recs,
+        &export::config_of(weights),
+        given.blob().body.trust.max_unevenness,
+        weights,
+        &opts,
+    )?;
+    let estimated = plan.cfg.iterations as f64 * SECONDS_PER_ITERATION + SECONDS_BESIDE;
+    say(&format!(
+        "a blob for {} {:.3}..{:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
+        opts.rig.length_label(),
+        plan.cfg.lengths[0],
+        plan.cfg.length_range()[1],
+        plan.cfg.theta0[0],
+        plan.cfg.theta0[1],
+        plan.cfg
+            .effect
+            .as_ref()
+            .map_or("no effect".into(), |e| format!(
+                "{} in {:.3e}..{:.3e}",
+                e.name, e.range[0], e.range[1]
+            )),
+        plan.start,
+        estimated / 60.0
+    ));
+    // 3. Train, export, calibrate.
+    let run = out.join("run");
+    let bar = if opts.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    models::train_or_reuse(&run, plan.cfg.clone(), bar)?;
+    let blob = out.join("rig.kkf");
+    say("choosing the filter's noise and calibrating the verdict");
+    export::export_lab_tuned_on(&run, &blob, &around::tuning_set(&plan.cfg))?;
+    let after_bytes = std::fs::read(&blob)?;
+    let after = models::open(&after_bytes, &blob.display().to_string())?;
+    // 4. Before and after on the held-out parts.
+    let recordings = parts
+        .iter()
+        .map(|p| {
+            let d = &p.diagnosis;
+            Ok(RigRecording {
+                source: p.source.clone(),
+                steps: [p.series.xs.len(), p.series.xs.len() - p.cut],
+                diagnosis: d.clone(),
+                length_period: opts.rig.length(opts.g, d.w * d.w),
+                before: read::held_out(&given, p, dt)?,
+                after: read::held_out(&after, p, dt)?,
+                physics: score::physics(p, opts.rig, opts.g, dt)?,
+            })
+        })
+        .collect::<Result<_>>()?;
+    // 5. The report.
+    let report = RigLoopReport {
+        given: weights.to_path_buf(),
+        blob,
+        start: plan.start,
+        effect_reason: plan.effect_reason,
+        config: plan.cfg,
+        estimated_seconds: estimated,
+        recordings,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    report::write(out, &report)?;
+    Ok(report)
+}

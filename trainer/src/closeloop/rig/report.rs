@@ -1,0 +1,159 @@
+//! Step 5: the report of the loop ending in a rig blob, as Markdown and
+//! JSON.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Result;
+use trainer_core::io::write_atomic;
+
+use super::read::HELD_OUT_LEAST;
+use super::{BlobRead, RigLoopReport, RigRecording};
+
+/// Writes `report.json` and `report.md` into `out`.
+pub(super) fn write(out: &Path, report: &RigLoopReport) -> Result<()> {
+    write_atomic(
+        &out.join("report.json"),
+        serde_json::to_string_pretty(report)?.as_bytes(),
+    )?;
+    write_atomic(&out.join("report.md"), markdown(report).as_bytes())?;
+    Ok(())
+}
+
+/// The report as Markdown.
+pub fn markdown(r: &RigLoopReport) -> String {
+    let mut s = String::new();
+    let c = &r.config;
+    let _ = writeln!(s, "# close-loop: a rig blob\n");
+    let _ = writeln!(
+        s,
+        "Wrote `{}` (with its sidecar), {}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}).\n",
+        r.blob.display(),
+        r.start,
+        r.effect_reason,
+        c.lab.as_ref().map_or(0, |d| d.rollouts),
+        c.length_range()[0],
+        c.length_range()[1],
+        c.rig.length_label(),
+        c.theta0[0],
+        c.theta0[1],
+        c.iterations,
+        c.seed,
+        r.seconds / 60.0,
+        r.estimated_seconds / 60.0,
+    );
+    let _ = writeln!(
+        s,
+        "Each recording's first two thirds are diagnosed and set the draws' ranges; the blobs are read on the last third alone (a fresh filter over it; on the whole recording where the third is under {HELD_OUT_LEAST} measurements), and forecast it as the loop scores every model: the median over windows of the angle's squared error over its variance.\n"
+    );
+    for rec in &r.recordings {
+        recording(&mut s, rec, r);
+    }
+    s
+}
+
+/// One recording's table and goal line.
+fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
+    let d = &rec.diagnosis;
+    let _ = writeln!(
+        s,
+        "## {}\n\n{} measurements used, {} held out; the period's length {:.4} m; diagnosed: {}{}.\n",
+        rec.source,
+        rec.steps[0],
+        rec.steps[1],
+        rec.length_period,
+        diagnosed(rec),
+        trainer_core::diagnose::q_factor(d).map_or(String::new(), |q| format!(
+            "; Q {q:.0} at {:.3} rad",
+            d.amplitude[1]
+        ))
+    );
+    let _ = writeln!(
+        s,
+        "| held-out third | forecast error | length, m | vs period's | verdict | second parameter | Q | read on |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    for (name, b) in [
+        (format!("before: `{}`", r.given.display()), &rec.before),
+        (format!("after: `{}`", r.blob.display()), &rec.after),
+    ] {
+        let _ = writeln!(
+            s,
+            "| {name} | {:.3} | {:.4} ± {:.4} | {:+.2}% | {} | {} | {} | {} |",
+            b.forecast.median,
+            b.length,
+            b.length_std,
+            100.0 * (f64::from(b.length) / rec.length_period - 1.0),
+            verdict(b),
+            second(b),
+            b.q_factor
+                .map_or("-".into(), |[q, sd]| format!("{q:.0} ± {sd:.0}")),
+            if b.held_out_alone {
+                format!("the held-out {}", b.measured)
+            } else {
+                format!("all {} (held-out part too short)", b.measured)
+            },
+        );
+    }
+    let [p0, p1] = rec.physics;
+    let _ = writeln!(
+        s,
+        "| physics at the swings' w | {:.3} | | | | | | |\n| the same with the diagnosed terms | {:.3} | | | | | | |\n",
+        p0.median, p1.median
+    );
+    let ratio = rec.after.forecast.median / rec.before.forecast.median;
+    let physics_ratio = p1.median / p0.median;
+    let (goal, met) = if physics_ratio <= 0.5 {
+        ("at most 1/2".to_string(), ratio <= 0.5)
+    } else {
+        (
+            format!("within 0.1 of the physics' {physics_ratio:.2}"),
+            ratio <= physics_ratio + 0.1,
+        )
+    };
+    let _ = writeln!(
+        s,
+        "Forecast error after / before: {ratio:.2} (goal: {goal}: {}); the physics' with / without its terms: {physics_ratio:.2}.\n",
+        if met { "met" } else { "missed" }
+    );
+}
+
+/// The diagnosis' dynamic terms and its `Q`.
+fn diagnosed(rec: &RigRecording) -> String {
+    let terms: Vec<String> = rec
+        .diagnosis
+        .effects
+        .iter()
+        .map(|e| {
+            format!(
+                "{} {:.3e} ± {:.1e} {}",
+                e.name,
+                e.coefficient,
+                e.se,
+                e.name.unit()
+            )
+        })
+        .collect();
+    if terms.is_empty() {
+        "no effect".into()
+    } else {
+        terms.join(", ")
+    }
+}
+
+/// The verdict and its reasons.
+fn verdict(b: &BlobRead) -> String {
+    if b.reasons.is_empty() {
+        b.verdict.clone()
+    } else {
+        format!("{}: {}", b.verdict, b.reasons.join("; "))
+    }
+}
+
+/// The blob's second parameter as read.
+fn second(b: &BlobRead) -> String {
+    match b.second_value {
+        Some([v, sd]) => format!("{} {v:.3e} ± {sd:.1e} {}", b.second, b.second_unit),
+        None => "none".into(),
+    }
+}
