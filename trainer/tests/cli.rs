@@ -658,6 +658,87 @@ fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     assert_trained_alone_the_same(d, &out, &r);
 }
 
+#[test]
+fn close_loop_from_a_rig_blob_ends_in_a_rig_blob_that_estimate_runs() {
+    // Seed 3's lab recording of drag on the bob. 30 iterations: the
+    // plumbing (the plan around the recording, the fine-tuning, export,
+    // calibration, the report), not the blob's quality (its figures are
+    // in docs/close-loop-rig.md).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    run_ok(
+        koopman()
+            .args(["generate", "--lab", "3", "--out"])
+            .arg(d.join("lab")),
+    );
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("lab/lab.json")).unwrap()).unwrap();
+    let spec = truth
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["case"] == "drag")
+        .unwrap();
+    let rec = d.join("lab").join(spec["file"].as_str().unwrap());
+    let out = d.join("loop");
+    let weights = root().join("weights/rig.kkf");
+    run_ok(
+        koopman()
+            .args(["close-loop", "--quiet", "--iterations", "30", "--weights"])
+            .arg(&weights)
+            .arg("--out")
+            .arg(&out)
+            .arg(&rec),
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    // The plan: the named effect as the second parameter, its range and
+    // the lengths around the truth, fine-tuned from the given blob.
+    let c = &r["config"];
+    assert_eq!(c["effect"]["name"], "drag", "{c:#}");
+    let within = |range: &serde_json::Value, v: f64| {
+        range[0].as_f64().unwrap() <= v && v <= range[1].as_f64().unwrap()
+    };
+    let drag = spec["effects"][0][1].as_f64().unwrap();
+    assert!(within(&c["effect"]["range"], drag), "{c:#}");
+    assert!(
+        within(&c["lengths"], spec["length"].as_f64().unwrap()),
+        "{c:#}"
+    );
+    assert_eq!(c["warm_start"].as_str().unwrap(), weights.to_str().unwrap());
+    assert_eq!(c["iterations"], 30);
+    // Read before (the given blob's viscous) and after (drag), each with
+    // a forecast error and a length.
+    let rec_r = &r["recordings"][0];
+    assert_eq!(rec_r["before"]["second"], "viscous");
+    assert_eq!(rec_r["after"]["second"], "drag");
+    for side in ["before", "after"] {
+        assert!(rec_r[side]["forecast"]["median"].as_f64().unwrap() >= 0.0);
+        assert!(rec_r[side]["length"].as_f64().unwrap() > 0.0);
+    }
+    // The blob runs as a user runs it, its effect named.
+    let csv = d.join("rec.csv");
+    run_ok(
+        koopman()
+            .arg("import")
+            .arg(&rec)
+            .args(["--dt", "0.04", "--out"])
+            .arg(&csv),
+    );
+    let est = run_ok(
+        koopman()
+            .args(["estimate", "--g", "9.81", "--json", "--weights"])
+            .arg(out.join("rig.kkf"))
+            .arg(&csv),
+    );
+    assert!(est.contains("drag"), "{est}");
+    assert!(
+        std::fs::read_to_string(out.join("report.md"))
+            .unwrap()
+            .contains("after")
+    );
+}
+
 /// Seed 3's lab recording of viscous damping with an offset, its spec,
 /// and the file of its first 40 s, then a gap of 12 s and the rest (as an
 /// encoder logged per count leaves when the swing dies out): the loop

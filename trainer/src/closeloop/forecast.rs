@@ -1,8 +1,9 @@
 //! The held-out score: forecast error over windows of the part of a
 //! recording that neither the diagnosis nor the training saw.
 //!
-//! A forecast starts every [`STRIDE`] steps of the held-out part. The
-//! filter sees the blob's [`WINDOW`] measurements before it (where the
+//! A forecast starts every [`STRIDE`] steps of the held-out part (fewer
+//! on a short one). The filter sees the blob's [`WINDOW`] measurements
+//! before it (where the
 //! held-out part has not had that many yet, they reach back into the
 //! first part: only the forecast is of data the loop did not see); then
 //! the model forecasts [`HORIZON_S`] seconds on from the filter's mean
@@ -24,7 +25,8 @@ use trainer_core::protocol::WINDOW;
 /// Seconds forecast after each window: several periods of the recordings
 /// this is for, so that a loss of a few percent a swing shows.
 pub const HORIZON_S: f64 = 5.0;
-/// Steps between window starts.
+/// Steps between window starts (fewer where a held-out part is too short
+/// for [`MIN_WINDOWS`] forecasts so far apart).
 pub const STRIDE: usize = 8;
 /// Windows a held-out part gives at least: on a short recording the
 /// horizon shrinks (to no fewer than [`MIN_HORIZON`] steps) to leave them.
@@ -77,14 +79,19 @@ fn summarise(mut v: Vec<f64>) -> Score {
 /// first state, with at least [`WINDOW`] measurements before it.
 pub fn windows(len: usize, from: usize, dt: f64) -> Result<(Vec<usize>, usize)> {
     let first = from.max(WINDOW);
-    let room = len.saturating_sub(first + STRIDE * (MIN_WINDOWS - 1));
+    let left = len.saturating_sub(first);
+    // A short held-out part (a 5 s encoder swing's last third) starts its
+    // forecasts closer together, down to a step apart, to give as many.
+    let stride = STRIDE
+        .min(left.saturating_sub(MIN_HORIZON) / (MIN_WINDOWS - 1))
+        .max(1);
+    let room = len.saturating_sub(first + stride * (MIN_WINDOWS - 1));
     let horizon = ((HORIZON_S / dt).round() as usize).min(room);
     anyhow::ensure!(
         horizon >= MIN_HORIZON,
-        "{} samples to forecast, after the filter's {WINDOW}: too few for {MIN_WINDOWS} forecasts of {MIN_HORIZON} steps, {STRIDE} steps apart; record longer",
-        len.saturating_sub(first)
+        "{left} samples to forecast, after the filter's {WINDOW}: too few for {MIN_WINDOWS} forecasts of {MIN_HORIZON} steps; record longer"
     );
-    Ok(((first..=len - horizon).step_by(STRIDE).collect(), horizon))
+    Ok(((first..=len - horizon).step_by(stride).collect(), horizon))
 }
 
 /// The KLM's forecast of `horizon` states after the measurements `seen`:
@@ -133,4 +140,31 @@ pub fn physics(p: &Pendulum, xs: &[[f64; 2]], from: usize, dt: f64) -> Result<Sc
         let x0 = *seen.last().context("an empty window")?;
         Ok(p.rollout(x0, horizon + 1, dt).split_off(1))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A long held-out part's forecasts start [`STRIDE`] steps apart and
+    /// run [`HORIZON_S`]; a 5 s recording's last third (42 of 125 steps
+    /// at 25 Hz) still gives [`MIN_WINDOWS`] of at least [`MIN_HORIZON`]
+    /// steps, closer together; fewer than [`MIN_HORIZON`] steps give none.
+    #[test]
+    fn a_short_held_out_part_gives_forecasts_closer_together() {
+        let (starts, horizon) = windows(1000, 600, 0.04).unwrap();
+        assert_eq!(horizon, 125);
+        assert_eq!(starts[1] - starts[0], STRIDE);
+        assert_eq!(
+            *starts.last().unwrap() + horizon,
+            1000 - (1000 - 600 - 125) % STRIDE
+        );
+        let (starts, horizon) = windows(125, 83, 0.04).unwrap();
+        assert!(
+            starts.len() >= MIN_WINDOWS && horizon >= MIN_HORIZON,
+            "{starts:?} {horizon}"
+        );
+        assert!(starts.iter().all(|&s| s >= 83 && s + horizon <= 125));
+        assert!(windows(100, 83, 0.04).is_err());
+    }
 }

@@ -58,3 +58,58 @@ fn linear(blob: &Blob<'_>, net: Net, k: usize, device: &Device) -> Result<Linear
         bias: Some(Param::from_tensor(bias)),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use estimator::Model;
+
+    /// The shipped rig blob's MLPs, loaded into burn, compute what the
+    /// estimator's own no_std MLPs compute on the same normalised states
+    /// (to 1e-5 of the latent's scale, f32 sums in another order), and its
+    /// normalisation comes along: a fine-tuning starts where the blob is.
+    #[test]
+    fn a_blob_loads_into_the_model_it_was_exported_from() {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../weights/rig.kkf"));
+        let bytes = std::fs::read(path).unwrap();
+        let model = Model::from_bytes(&bytes).unwrap();
+        let act = model.blob().body.activation;
+        let device = Device::flex();
+        let (enc, dec, norm) = mlps_of(path, 64, &device).unwrap();
+        assert_eq!(norm.mu[0], f64::from(model.blob().body.norm_mu[0]));
+        assert_eq!(norm.s[1], f64::from(model.blob().body.norm_s[1]));
+        for x in [[0.0f32, 0.0], [0.8, -1.3], [-2.5, 3.0]] {
+            let y_ref = model.encode(&x);
+            let y: Vec<f32> = enc
+                .forward(
+                    Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device),
+                    act,
+                )
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap();
+            let scale = y_ref.iter().fold(1.0f32, |a, v| a.max(v.abs()));
+            for (a, b) in y.iter().zip(&y_ref) {
+                assert!((a - b).abs() <= 1e-5 * scale, "{y:?} vs {y_ref:?}");
+            }
+            let x_ref = model.decode(&y_ref);
+            let x_back: Vec<f32> = dec
+                .forward(
+                    Tensor::<2>::from_data(TensorData::new(y_ref.to_vec(), [1, 16]), &device),
+                    act,
+                )
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap();
+            for (a, b) in x_back.iter().zip(&x_ref) {
+                assert!(
+                    (a - b).abs() <= 1e-5 * (1.0 + b.abs()),
+                    "{x_back:?} vs {x_ref:?}"
+                );
+            }
+        }
+        // Another width is refused, naming both.
+        let e = mlps_of(path, 128, &device).unwrap_err().to_string();
+        assert!(e.contains("64 wide") && e.contains("128"), "{e}");
+    }
+}

@@ -65,6 +65,11 @@ pub struct LabCheckConfig {
     /// friction together at the sizes of real rigs ([`MIXED`]).
     #[serde(default)]
     pub mixed: bool,
+    /// The dissipation of every recording instead of the three in turn:
+    /// each part uniform over its range (a blob made for one rig is tuned
+    /// on recordings like that rig's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dissipation: Option<Vec<(EffectKind, [f64; 2])>>,
 }
 
 impl Default for LabCheckConfig {
@@ -79,6 +84,7 @@ impl Default for LabCheckConfig {
             offsets: [0.0, 0.0],
             rates: None,
             mixed: false,
+            dissipation: None,
         }
     }
 }
@@ -215,6 +221,8 @@ pub const MIXED: [(EffectKind, [f64; 2]); 3] = [
 ];
 /// The mixed dissipation's name in tables.
 pub const MIXED_NAME: &str = "mixed";
+/// The name of a dissipation given by [`LabCheckConfig::dissipation`].
+pub const DRAWN_NAME: &str = "given";
 
 /// Runs the estimator of `model` over the recordings of `cfg`, at the
 /// lab's `g` (declared), each imported at the blob's interval.
@@ -242,9 +250,16 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         let (kind, range) = EFFECTS[k % turns % EFFECTS.len()];
         let mut spec = draw(&mut rng, cfg, rig, kind, range);
         if mixed {
-            spec.effects = draw_mixed(&mut rng);
+            spec.effects = draw_mixed(&mut rng, &MIXED);
         }
-        let name = if mixed { MIXED_NAME } else { kind.name() };
+        if let Some(d) = &cfg.dissipation {
+            spec.effects = draw_mixed(&mut rng, d);
+        }
+        let name = match (&cfg.dissipation, mixed) {
+            (Some(_), _) => DRAWN_NAME,
+            (None, true) => MIXED_NAME,
+            (None, false) => kind.name(),
+        };
         let context = || {
             format!(
                 "lab recording {k} ({:.3} m, {:.3} rad)",
@@ -288,12 +303,21 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
     Ok(out)
 }
 
-/// The mixed dissipation from `rng`: each of [`MIXED`] uniform over its
-/// range.
-fn draw_mixed(rng: &mut ChaCha8Rng) -> Vec<Effect> {
-    MIXED
+/// A dissipation from `rng`: each part of `parts` (e.g. [`MIXED`])
+/// uniform over its range.
+fn draw_mixed(rng: &mut ChaCha8Rng, parts: &[(EffectKind, [f64; 2])]) -> Vec<Effect> {
+    parts
         .iter()
-        .map(|&(kind, [lo, hi])| Effect::new(kind, rng.random_range(lo..hi)))
+        .map(|&(kind, [lo, hi])| {
+            Effect::new(
+                kind,
+                if hi > lo {
+                    rng.random_range(lo..hi)
+                } else {
+                    lo
+                },
+            )
+        })
         .collect()
 }
 

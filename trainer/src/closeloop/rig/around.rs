@@ -13,8 +13,8 @@ use trainer_core::labcheck::{self, LabCheckConfig};
 use trainer_core::physics::{EffectKind, RigPhysics};
 
 use super::super::CloseLoopOptions;
-use super::super::effect;
 use super::super::parts::Part;
+use super::super::{EFFECT_MARGIN, effect};
 use crate::learn::config::{ModelKind, TrainConfig};
 
 /// The new blob's lengths reach this factor below the smallest length the
@@ -29,7 +29,10 @@ pub const ROLLOUTS: usize = 1500;
 /// A training anew runs this many times the iterations of a fine-tuning.
 pub const ANEW_FACTOR: usize = 3;
 
-/// Largest angle offset the draws carry, rad (real rigs: 0.01 to 0.06).
+/// Largest angle offset the filter's noise is tuned with, rad (real
+/// rigs: 0.01 to 0.06). The training draws carry none beyond the given
+/// blob's: the estimator takes the offset off before the encoder, so the
+/// model never sees one.
 pub const OFFSET: f64 = 0.06;
 
 /// Highest source rate drawn, Hz: faster sources (an encoder's 1 kHz)
@@ -71,7 +74,13 @@ pub fn plan(
     cfg.theta0 = swings(parts);
     let added = effect::add(parts, &cfg, &|_| {});
     let chosen = added.range.as_ref().map(|e| e.name);
-    if let Some(c) = added.cfg {
+    if let Some(mut c) = added.cfg {
+        // From none to twice the largest coefficient named: its middle,
+        // the filter's prior mean, is that coefficient, and a unit with
+        // less of the effect lies within.
+        if let Some(e) = c.effect.as_mut() {
+            e.range = [0.0, 2.0 * e.range[1] / (1.0 + EFFECT_MARGIN)];
+        }
         cfg = c;
     }
     let mut draw = given.lab.clone().unwrap_or_default();
@@ -139,10 +148,10 @@ fn swings(parts: &[Part]) -> [f64; 2] {
     [(0.5 * end).clamp(0.03, hi), hi]
 }
 
-/// What real rigs add, around what the first parts show: an offset of up
-/// to [`OFFSET`], and drag and Coulomb friction where the diagnosis named
-/// them (each over half to 1.5 times its coefficients) unless it is the
-/// blob's own effect (`chosen`), else the given draw's.
+/// What real rigs add, around what the first parts show: drag and
+/// Coulomb friction where the diagnosis named them (each over half to 1.5
+/// times its coefficients) unless it is the blob's own effect (`chosen`),
+/// else the given draw's; the given draw's offset.
 fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras {
     let named = |kind: EffectKind, given: [f64; 2]| -> [f64; 2] {
         if chosen == Some(kind) {
@@ -160,7 +169,7 @@ fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras 
         }
     };
     Extras {
-        offset: given.offset.max(OFFSET),
+        offset: given.offset,
         drag: named(EffectKind::Drag, given.drag),
         coulomb: named(EffectKind::Coulomb, given.coulomb),
         artefacts: given.artefacts,
@@ -199,14 +208,29 @@ fn within(given: &TrainConfig, cfg: &TrainConfig) -> bool {
 }
 
 /// The lab-like recordings the new blob's filter noise is chosen on:
-/// the lab-check's, at the plan's lengths and swings.
+/// the lab-check's, drawn as the plan draws (its lengths, swings,
+/// dissipation, offsets and slowest rate), 20 to 40 s each.
 pub fn tuning_set(cfg: &TrainConfig) -> LabCheckConfig {
+    let draw = cfg.lab.clone().unwrap_or_default();
+    let e = &draw.extras;
+    let mut dissipation: Vec<(EffectKind, [f64; 2])> =
+        cfg.effect.iter().map(|e| (e.name, e.range)).collect();
+    for (kind, range) in [(EffectKind::Drag, e.drag), (EffectKind::Coulomb, e.coulomb)] {
+        if range[1] > 0.0 {
+            dissipation.push((kind, range));
+        }
+    }
+    let slowest = draw.rates.iter().copied().fold(f64::INFINITY, f64::min);
     LabCheckConfig {
         seed: labcheck::TUNING_SEED,
         recordings: 60,
         lengths: cfg.length_range(),
         swings: cfg.theta0,
         seconds: [20.0, 40.0],
-        ..LabCheckConfig::default()
+        noise: draw.noise,
+        offsets: [-OFFSET, OFFSET],
+        rates: slowest.is_finite().then_some([slowest, slowest]),
+        mixed: false,
+        dissipation: (!dissipation.is_empty()).then_some(dissipation),
     }
 }

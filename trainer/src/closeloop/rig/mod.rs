@@ -68,8 +68,9 @@ pub struct RigRecording {
     /// The new blob's.
     pub after: BlobRead,
     /// The physics at the swings' `w`: without effects, and with the
-    /// diagnosed dynamic terms.
-    pub physics: [Score; 2],
+    /// diagnosed dynamic terms (`None` where the held-out part is too
+    /// short for forecasts).
+    pub physics: Option<[Score; 2]>,
 }
 
 /// What the loop made and found.
@@ -170,7 +171,7 @@ pub fn close_loop_rig(
                 length_period: opts.rig.length(opts.g, d.w * d.w),
                 before: read::held_out(&given, p, dt)?,
                 after: read::held_out(&after, p, dt)?,
-                physics: score::physics(p, opts.rig, opts.g, dt)?,
+                physics: score::physics(p, opts.rig, opts.g, dt).ok(),
             })
         })
         .collect::<Result<_>>()?;

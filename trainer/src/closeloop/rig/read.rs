@@ -22,8 +22,11 @@ pub const HELD_OUT_LEAST: usize = 2 * WINDOW;
 /// One blob's reading of a held-out part.
 #[derive(Debug, Clone, Serialize)]
 pub struct BlobRead {
-    /// Held-out forecast error.
-    pub forecast: Score,
+    /// Held-out forecast error (`None`: the part is too short for
+    /// forecasts, see `forecast_refused`).
+    pub forecast: Option<Score>,
+    /// Why there is none.
+    pub forecast_refused: Option<String>,
     /// Measurements the estimate saw (the held-out part's, or the whole
     /// recording's where that is shorter than [`HELD_OUT_LEAST`]).
     pub measured: usize,
@@ -50,8 +53,7 @@ pub struct BlobRead {
 /// `model`'s reading of `part`'s held-out part (steps of `dt`).
 pub fn held_out(model: &Model<'_>, part: &Part, dt: f64) -> Result<BlobRead> {
     let xs = &part.series.xs;
-    let ctx = |e: anyhow::Error| e.context(format!("{}: the held-out part", part.source));
-    let score = forecast::klm(model, xs, part.cut, dt).map_err(ctx)?;
+    let score = forecast::klm(model, xs, part.cut, dt);
     let alone = xs.len().saturating_sub(part.cut) >= HELD_OUT_LEAST;
     let held = xs
         .get(if alone { part.cut } else { 0 }..)
@@ -62,7 +64,8 @@ pub fn held_out(model: &Model<'_>, part: &Part, dt: f64) -> Result<BlobRead> {
     let spec = model.blob().body.params.get(1);
     let declared = spec.is_some_and(|s| s.declared);
     Ok(BlobRead {
-        forecast: score,
+        forecast_refused: score.as_ref().err().map(|e| format!("{e:#}")),
+        forecast: score.ok(),
         measured: held.len(),
         held_out_alone: alone,
         length: o.params[0],

@@ -44,6 +44,12 @@ pub fn markdown(r: &RigLoopReport) -> String {
     );
     let _ = writeln!(
         s,
+        "Run it on the next recording: `koopman import REC --dt {} --out rec.csv`, then `koopman estimate --weights {} --g 9.81 rec.csv`.\n",
+        c.dt,
+        r.blob.display()
+    );
+    let _ = writeln!(
+        s,
         "Each recording's first two thirds are diagnosed and set the draws' ranges; the blobs are read on the last third alone (a fresh filter over it; on the whole recording where the third is under {HELD_OUT_LEAST} measurements), and forecast it as the loop scores every model: the median over windows of the angle's squared error over its variance.\n"
     );
     for rec in &r.recordings {
@@ -79,8 +85,9 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
     ] {
         let _ = writeln!(
             s,
-            "| {name} | {:.3} | {:.4} ± {:.4} | {:+.2}% | {} | {} | {} | {} |",
-            b.forecast.median,
+            "| {name} | {} | {:.4} ± {:.4} | {:+.2}% | {} | {} | {} | {} |",
+            b.forecast
+                .map_or("-".into(), |f| format!("{:.3}", f.median)),
             b.length,
             b.length_std,
             100.0 * (f64::from(b.length) / rec.length_period - 1.0),
@@ -95,13 +102,23 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
             },
         );
     }
-    let [p0, p1] = rec.physics;
+    let (Some([p0, p1]), Some(before), Some(after)) =
+        (rec.physics, rec.before.forecast, rec.after.forecast)
+    else {
+        let why = rec
+            .before
+            .forecast_refused
+            .as_deref()
+            .unwrap_or("no forecasts");
+        let _ = writeln!(s, "\nNo forecast score: {why}.\n");
+        return;
+    };
     let _ = writeln!(
         s,
         "| physics at the swings' w | {:.3} | | | | | | |\n| the same with the diagnosed terms | {:.3} | | | | | | |\n",
         p0.median, p1.median
     );
-    let ratio = rec.after.forecast.median / rec.before.forecast.median;
+    let ratio = after.median / before.median;
     let physics_ratio = p1.median / p0.median;
     let (goal, met) = if physics_ratio <= 0.5 {
         ("at most 1/2".to_string(), ratio <= 0.5)
