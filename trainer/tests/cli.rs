@@ -666,13 +666,7 @@ fn close_loop_from_a_rig_blob_ends_in_a_rig_blob_that_estimate_runs() {
     // in docs/close-loop-rig.md).
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    run_ok(
-        koopman()
-            .args(["generate", "--lab", "3", "--out"])
-            .arg(d.join("lab")),
-    );
-    let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("lab/lab.json")).unwrap()).unwrap();
+    let truth = lab_3(d);
     let spec = truth
         .as_array()
         .unwrap()
@@ -739,19 +733,22 @@ fn close_loop_from_a_rig_blob_ends_in_a_rig_blob_that_estimate_runs() {
     );
 }
 
-/// Seed 3's lab recording of viscous damping with an offset, its spec,
-/// and the file of its first 40 s, then a gap of 12 s and the rest (as an
-/// encoder logged per count leaves when the swing dies out): the loop
-/// uses the part before the gap.
-fn gapped_lab_recording(d: &Path) -> (serde_json::Value, std::path::PathBuf) {
+/// Seed 3's lab recordings written into `d/lab`; their truth.
+fn lab_3(d: &Path) -> serde_json::Value {
     run_ok(
         koopman()
             .args(["generate", "--lab", "3", "--out"])
             .arg(d.join("lab")),
     );
-    let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("lab/lab.json")).unwrap()).unwrap();
-    let spec = truth[6].clone();
+    serde_json::from_str(&std::fs::read_to_string(d.join("lab/lab.json")).unwrap()).unwrap()
+}
+
+/// Seed 3's lab recording of viscous damping with an offset, its spec,
+/// and the file of its first 40 s, then a gap of 12 s and the rest (as an
+/// encoder logged per count leaves when the swing dies out): the loop
+/// uses the part before the gap.
+fn gapped_lab_recording(d: &Path) -> (serde_json::Value, std::path::PathBuf) {
+    let spec = lab_3(d)[6].clone();
     assert_eq!(spec["case"], "viscous+offset");
     let text = std::fs::read_to_string(d.join("lab").join(spec["file"].as_str().unwrap())).unwrap();
     let kept: Vec<&str> = text

@@ -18,12 +18,17 @@ use super::{CloseLoopReport, figure, forecast};
 
 /// Step 8: `report.json` and `report.md` into `out`.
 pub(super) fn write(out: &Path, report: &CloseLoopReport) -> Result<()> {
+    write_both(out, report, &markdown(report))
+}
+
+/// A loop's `report` into `out` as `report.json` and, written as `md`,
+/// `report.md`.
+pub(super) fn write_both(out: &Path, report: &impl serde::Serialize, md: &str) -> Result<()> {
     write_atomic(
         &out.join("report.json"),
         serde_json::to_string_pretty(report)?.as_bytes(),
     )?;
-    write_atomic(&out.join("report.md"), markdown(report).as_bytes())?;
-    Ok(())
+    write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
 /// Step 8: the figure `before_after.png` into `out`: per recording of

@@ -5,19 +5,13 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Result;
-use trainer_core::io::write_atomic;
 
 use super::read::HELD_OUT_LEAST;
 use super::{BlobRead, RigLoopReport, RigRecording};
 
 /// Writes `report.json` and `report.md` into `out`.
 pub(super) fn write(out: &Path, report: &RigLoopReport) -> Result<()> {
-    write_atomic(
-        &out.join("report.json"),
-        serde_json::to_string_pretty(report)?.as_bytes(),
-    )?;
-    write_atomic(&out.join("report.md"), markdown(report).as_bytes())?;
-    Ok(())
+    super::super::report::write_both(out, report, &markdown(report))
 }
 
 /// The report as Markdown.
