@@ -46,6 +46,19 @@ pub fn markdown(r: &RigLoopReport) -> String {
         s,
         "Each recording's first two thirds are diagnosed and set the draws' ranges; the blobs are read on the last third alone (a fresh filter over it; on the whole recording where the third is under {HELD_OUT_LEAST} measurements), and forecast it as the loop scores every model: the median over windows of the angle's squared error over its variance.\n"
     );
+    let short: Vec<&RigRecording> = r
+        .recordings
+        .iter()
+        .filter(|x| !x.after.held_out_alone)
+        .collect();
+    if let Some(least) = short.iter().map(|x| x.steps[1]).min() {
+        let _ = writeln!(
+            s,
+            "**Not a held-out check:** {} of {} recordings leave a last third under {HELD_OUT_LEAST} measurements (the shortest {least}); their lengths and verdicts are read over the whole recording, whose first part set the blob's ranges. Record longer (a minute or more) before relying on this blob's verdict.\n",
+            short.len(),
+            r.recordings.len()
+        );
+    }
     for rec in &r.recordings {
         recording(&mut s, rec, r);
     }
