@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use anyhow::Result;
-use trainer_core::data::import::Recording;
+use trainer_core::data::import::{self, Recording};
 use trainer_core::data::lab::Extras;
 use trainer_core::labcheck::{self, LabCheckConfig};
 use trainer_core::physics::{EffectKind, RigPhysics};
@@ -181,13 +181,9 @@ fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras 
 fn rates(recs: &[(String, Recording)], given: &[f64]) -> Vec<f64> {
     let mut out: Vec<f64> = Vec::new();
     for (_, r) in recs {
-        let mut d: Vec<f64> = r.t.windows(2).map(|w| w[1] - w[0]).collect();
-        d.sort_by(f64::total_cmp);
-        let Some(&m) = d.get(d.len() / 2) else {
-            continue;
-        };
-        let rate = ((1.0 / m).round()).min(MAX_RATE);
-        if rate.is_finite() && rate > 0.0 && !out.contains(&rate) {
+        let step = import::median_step(&r.t);
+        let rate = (1.0 / step).round().min(MAX_RATE);
+        if step > 0.0 && rate > 0.0 && !out.contains(&rate) {
             out.push(rate);
         }
     }

@@ -129,11 +129,10 @@ pub fn close_loop_rig(
         &opts,
     )?;
     let estimated = plan.cfg.iterations as f64 * SECONDS_PER_ITERATION + SECONDS_BESIDE;
+    let [lo, hi] = plan.cfg.length_range();
     say(&format!(
-        "a blob for {} {:.3}..{:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
+        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
         opts.rig.length_label(),
-        plan.cfg.lengths[0],
-        plan.cfg.length_range()[1],
         plan.cfg.theta0[0],
         plan.cfg.theta0[1],
         plan.cfg

@@ -69,6 +69,7 @@ pub use read::{
     unrecognised,
 };
 pub use releases::releases;
+pub use resample::median_step;
 pub use stream::Stream;
 
 use crate::protocol::DT;

@@ -7,8 +7,8 @@ use anyhow::Result;
 
 use super::{ImportOptions, Recording};
 
-/// The median step between time stamps.
-pub(super) fn median_step(t: &[f64]) -> f64 {
+/// The median step between time stamps (0 with fewer than two).
+pub fn median_step(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     d.sort_by(f64::total_cmp);
     d.get(d.len() / 2).copied().unwrap_or(0.0)
