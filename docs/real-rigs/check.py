@@ -1,8 +1,9 @@
-"""Checks on the shared real recordings (`../shared/data/measured`): each as it is, with an
+"""Checks on the shared real recordings (`../shared/data/measured`: the six
+video files and the three encoder swings): each as it is, with an
 offset of +-0.05 rad added, resampled to 5 Hz, and with 1% of its samples
 replaced by spikes (seed 36). Prints the length at the end, the verdict,
 the offset and the outliers."""
-import csv, json, os, random, subprocess, sys
+import csv, json, math, os, random, subprocess, sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 K = sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, 'target/release/koopman')
@@ -10,10 +11,18 @@ S = os.path.join(ROOT, '..', 'shared/data/measured')
 OUT = os.path.join(ROOT, 'runs/real-rigs')
 os.makedirs(OUT, exist_ok=True)
 VIDEO = ['q2_data', 'q4b_data1', 'q4b_data2', 'q4b_data3', 'q4b_data4', 'q4b_data5']
+ENCODER = ['pendulum_free_swing_data_01', 'pendulum_free_swing_data_02', 'pendulum_free_swing_data_03']
 
 def read_video(name):
     rows = list(csv.reader(open(f'{S}/video-tracked/{name}.csv')))
     return [(float(r[0]), float(r[1])) for r in rows[1:] if r and r[0] and r[1]]
+
+def read_encoder(name):
+    """Degrees, one a line after a header and its values (the rate, Hz)."""
+    lines = open(f'{S}/rotary-encoder/{name}.txt').read().split('\n')
+    rate = float(lines[1].split(',')[1])
+    degrees = [float(l) for l in lines[2:] if l.strip()]
+    return [(k / rate, math.radians(d)) for k, d in enumerate(degrees)]
 
 def write(path, rows):
     with open(path, 'w') as f:
@@ -54,8 +63,7 @@ def run(path, label):
     return lines[-1] if lines else {'error': 'no output'}
 
 rng = random.Random(36)
-for name in VIDEO:
-    rows = read_video(name)
+for name, rows in [(n, read_video(n)) for n in VIDEO] + [('encoder' + n[-2:], read_encoder(n)) for n in ENCODER]:
     for label, v in variants(rows, rng):
         p = f'{OUT}/{name}-{label}.src.csv'
         write(p, v)

@@ -93,6 +93,12 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 /// a real reading (an angle of 1e6 rad is a broken sensor, not a swing).
 pub const MAX_ABS_INPUT: f32 = 1.0e6;
 
+/// The offset, as a share of the swing, from which its first subtraction
+/// starts the parameters afresh ([`Estimator::reopen_params`]): a smaller
+/// one moved the estimate less than the filter's own error, and the
+/// estimate is kept.
+const REOPEN_SHARE: f32 = 0.1;
+
 /// The estimator: a fixed-size filter state over one model.
 ///
 /// When the blob carries a gain schedule (its first `T` updates' gains,
@@ -238,7 +244,8 @@ impl<'m> Estimator<'m> {
     /// The same filter told the source's own sampling interval `dt` (s),
     /// before any resampling to the blob's: where the source gives fewer
     /// samples a period, at the length read, than the blob's calibration
-    /// covers, the verdict is
+    /// covers, or (coarser than the blob's interval) fewer than a
+    /// [`WINDOW`](crate::WINDOW) of them so far, the verdict is
     /// [`Reason::CoarseSource`](crate::Reason::CoarseSource).
     ///
     /// # Errors
@@ -424,7 +431,7 @@ impl<'m> Estimator<'m> {
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
             }
             if !was && self.centre.subtracting() {
-                self.reopen_params();
+                self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
             }
         }
         Ok(out)
@@ -575,7 +582,8 @@ impl<'m> Estimator<'m> {
             self.held = Some((*tail(&self.mean), self.param_std));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
-        let settled = self.t >= u32::from(self.model.blob().body.filter.burn_in);
+        let burn_in = u32::from(self.model.blob().body.filter.burn_in);
+        let settled = self.t >= self.burn_until.max(burn_in);
         let q = tail(&self.mean).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
         self.window.push(!inside);

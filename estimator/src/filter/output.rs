@@ -220,8 +220,10 @@ impl Estimator<'_> {
 
     /// Whether the declared source gives at least `min_samples` samples a
     /// period at the length `length` (read at the blob's gravity): the
-    /// period is `2 pi sqrt(l_eq / g)`. Passes where nothing is declared,
-    /// or the length is not one.
+    /// period is `2 pi sqrt(l_eq / g)`; and, coarser than the blob's
+    /// interval, whether it has given a [`WINDOW`](crate::WINDOW) of its
+    /// own samples (what the verdict reads, not interpolations). Passes
+    /// where nothing is declared, or the length is not one.
     fn source_ok(&self, length: f32, min_samples: f32) -> bool {
         let body = &self.model.blob().body;
         if self.source_dt <= 0.0 || !(length.is_finite() && length > 0.0) {
@@ -229,7 +231,9 @@ impl Estimator<'_> {
         }
         let l_eq = length * body.rig.equivalent_fraction();
         let period = core::f32::consts::TAU * libm::sqrtf(l_eq / body.g);
-        period / self.source_dt >= min_samples
+        let own = self.t as f32 * body.dt / self.source_dt;
+        let enough = self.source_dt <= body.dt || own >= crate::WINDOW as f32;
+        period / self.source_dt >= min_samples && enough
     }
 
     /// The parameter `spec` at the coordinate `q` with the filter's

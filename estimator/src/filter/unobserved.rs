@@ -8,7 +8,7 @@ use super::{Estimator, StepOutput};
 use crate::trust::{Consistency, EnvelopeWindow, Spread, SwingWindow};
 use crate::{Error, LATENT_DIM, PARAM_DIM};
 
-/// How many times the parameters' variances widen when an offset is
+/// How many times the parameters' variances widen when a small offset is
 /// first subtracted: the estimate may move by four of its standard
 /// deviations (wider, and a bilinear model's `F(q)` can be driven off its
 /// trained square before the swings pull it back).
@@ -81,30 +81,40 @@ impl Estimator<'_> {
         Ok(())
     }
 
-    /// The parameters' variances widened [`REOPEN`] times (at most to the
-    /// prior) and uncorrelated with the latent: what the filter learned of them from measurements an
-    /// offset had moved is forgotten once the offset is subtracted (the
-    /// whole recursion runs from then on); the verdict's corrections and
-    /// innovations count again after a new burn-in, and the swings, the
-    /// envelope and the held estimate are read afresh.
+    /// The parameters reopened once the offset is first subtracted: what
+    /// the filter learned of them from measurements the offset had moved
+    /// is forgotten. `afresh` (an offset that is a large share of the
+    /// swing) they start again from the blob's prior; otherwise their
+    /// variances widen [`REOPEN`] times (at most to the prior) about the
+    /// estimate so far. Either way they are uncorrelated with the latent,
+    /// the verdict's corrections and innovations count again after a new
+    /// burn-in (in which the envelope is read at any length), and the
+    /// swings, the envelope and the held estimate are read afresh.
     #[cold]
     #[inline(never)]
-    pub(super) fn reopen_params(&mut self) {
+    pub(super) fn reopen_params(&mut self, afresh: bool) {
         // Only the schedule's replay can fail: then the parameters stay.
         let Ok(mut p) = self.current_covariance() else {
             return;
         };
-        let prior = &self.model.blob().body.filter.prior_var;
+        let spec = &self.model.blob().body.filter;
         for (i, row) in p.iter_mut().enumerate() {
             for (j, v) in row.iter_mut().enumerate() {
                 if i >= LATENT_DIM || j >= LATENT_DIM {
-                    *v = if i == j {
-                        let widened = REOPEN * *v;
-                        prior.get(i).map_or(widened, |p| widened.min(*p))
-                    } else {
-                        0.0
+                    *v = match (i == j, spec.prior_var.get(i)) {
+                        (false, _) => 0.0,
+                        (true, Some(prior)) if afresh => *prior,
+                        (true, prior) => {
+                            let widened = REOPEN * *v;
+                            prior.map_or(widened, |p| widened.min(*p))
+                        }
                     };
                 }
+            }
+        }
+        if afresh {
+            for (m, prior) in self.mean.iter_mut().skip(LATENT_DIM).zip(&spec.prior_mean) {
+                *m = *prior;
             }
         }
         self.p = p;

@@ -74,7 +74,8 @@ pub enum Reason {
     /// blob's training gravity, which the motion cannot confirm.
     GravityUndeclared,
     /// The source was sampled more coarsely than the blob's calibration
-    /// covers.
+    /// covers, or, coarser than the blob's interval, has not yet given a
+    /// window of its own samples.
     CoarseSource,
 }
 

@@ -7,13 +7,16 @@
 //! drawn as its training set was, [`CalibrateConfig::lab`]; seeds distinct
 //! from the training set's and the test set's).
 //!
-//! Three disjoint sets, each from its own seed, one phase each:
+//! Disjoint sets, each from its own seed, one phase each:
 //! 1. `map`: the occupancy map, on [`CalibrateConfig::map_rollouts`]
 //!    rollouts.
 //! 2. `thresholds`: every threshold and the standard deviations' scale,
 //!    on [`CalibrateConfig::rollouts`] rollouts run for
 //!    [`CalibrateConfig::long_steps`], with the map in place.
-//! 3. `check`: what the calibrated blob does on as many rollouts it has
+//! 3. `coarse` (a lab blob's): the fewest samples a period of its source
+//!    it trusts, on lab-like recordings from video at 5 to 25 Hz (`seed +
+//!    3`).
+//! 4. `check`: what the calibrated blob does on as many rollouts it has
 //!    not seen; the figures the blob's JSON records.
 //!
 //! `held_out` draws the rollouts and reads the estimator on them.
@@ -31,6 +34,7 @@ use crate::physics::EffectRange;
 use crate::protocol::WINDOW;
 
 mod check;
+mod coarse;
 mod held_out;
 mod map;
 mod thresholds;
@@ -253,10 +257,15 @@ pub struct Calibration {
     /// The outlier gate: that quantile times the margin.
     #[serde(default)]
     pub max_step_nis: f32,
-    /// The fewest samples a period the calibration's sources give (their
-    /// slowest rate at the shortest length): a coarser source is flagged.
+    /// The fewest samples a period of its source the blob trusts: the
+    /// calibration's sources' (their slowest rate at the shortest length),
+    /// or for a lab blob the fewest it reads right on coarse sources.
     #[serde(default)]
     pub min_samples_per_period: f32,
+    /// A lab blob's coarse sources ([`coarse`]): what set
+    /// `min_samples_per_period` below the calibration set's slowest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coarse: Option<coarse::CoarseFigures>,
     /// On the check set after the window, and after the long run.
     pub check: [CheckFigures; 2],
 }
@@ -282,12 +291,27 @@ pub fn calibrate(
     let map = map::map(&setup, &mut progress)?;
     // 2. The thresholds on the calibration set, with the map in place.
     let thresholds = thresholds::thresholds(&setup, &map, &mut progress)?;
-    // 3. The calibrated blob, and what it does on the check set.
     let mut calibrated = setup.base;
     calibrated.body.trust = thresholds.trust;
+    // 3. A lab blob's coarsest source: the fewest samples a period it
+    // reads right, on coarse sources with the other checks in place.
+    let coarse = match &cfg.lab {
+        Some(lab) => {
+            let covered = f64::from(calibrated.body.trust.min_samples_per_period);
+            let (fewest, figures) =
+                coarse::fewest_read_right(&calibrated, lab, cfg.seed + 3, cfg.accurate, covered)?;
+            calibrated.body.trust.min_samples_per_period = fewest as f32;
+            Some(figures)
+        }
+        None => None,
+    };
+    // 4. The calibrated blob, and what it does on the check set.
     let bytes = blob_bytes(&calibrated)?;
     let check = check::check(&Model::from_bytes(&bytes)?, &setup, &mut progress)?;
-    Ok((bytes, Calibration::of(cfg, &map, &thresholds, check)))
+    let mut report = Calibration::of(cfg, &map, &thresholds, check);
+    report.min_samples_per_period = calibrated.body.trust.min_samples_per_period;
+    report.coarse = coarse;
+    Ok((bytes, report))
 }
 
 impl Calibration {
@@ -314,6 +338,7 @@ impl Calibration {
             step_nis_quantile: t.step_nis_quantile,
             max_step_nis: trust.max_step_nis,
             min_samples_per_period: trust.min_samples_per_period,
+            coarse: None,
             check,
         }
     }
