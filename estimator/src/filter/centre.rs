@@ -280,6 +280,28 @@ mod tests {
         assert!((fed[0] - a_end * libm::cosf(core::f32::consts::TAU * t)).abs() < 2e-3);
     }
 
+    /// An offset of 0.03 rad on a swing of 0.3 rad is subtracted from the
+    /// first triple on (turns at a half, one and one and a half periods):
+    /// not before it, and within 2e-3 rad of the truth after.
+    #[test]
+    fn an_offset_is_subtracted_from_the_first_triple() {
+        let (c, a, per_period) = (0.03f32, 0.3f32, 25.0f32);
+        let w = core::f32::consts::TAU;
+        let mut centre = Centre::default();
+        let mut at = |k: u32| {
+            let t = k as f32 / per_period;
+            centre.push(c + a * libm::cosf(w * t), -a * w * libm::sinf(w * t));
+            centre
+        };
+        for k in 0..35 {
+            assert!(!at(k).subtracting(), "{k}");
+        }
+        let after = (35..43).map(&mut at).last().unwrap();
+        assert!(after.subtracting());
+        assert!((after.applied - c).abs() < 2e-3, "{}", after.applied);
+        assert_eq!(after.offset().1, None);
+    }
+
     /// A swing without offset gives 0, and nothing before a triple.
     #[test]
     fn no_offset_reads_zero_and_nothing_is_known_before_three_turns() {
