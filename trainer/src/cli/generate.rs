@@ -90,6 +90,7 @@ impl RealArgs {
         let opts = SuiteOptions {
             extras: Extras {
                 offset: self.offset.unwrap_or(0.0),
+                viscous: [0.0, 0.0],
                 drag: pair("drag", &self.drag)?.unwrap_or_default(),
                 coulomb: pair("coulomb", &self.coulomb)?.unwrap_or_default(),
                 artefacts: Artefacts {

@@ -419,6 +419,10 @@ pub struct Extras {
     /// An angle offset, rad, uniform over `[-offset, offset]` (a camera's
     /// axes off vertical, an encoder's zero where it was switched on).
     pub offset: f64,
+    /// Viscous damping, 1/s, uniform over `[lo, hi]` (`hi` 0: none), for a
+    /// set whose own effect is another.
+    #[serde(skip_serializing_if = "is_none")]
+    pub viscous: [f64; 2],
     /// Drag on the bob, 1/rad, uniform over `[lo, hi]` (`hi` 0: none).
     pub drag: [f64; 2],
     /// Coulomb friction at the pivot, rad/s^2, uniform over `[lo, hi]`
@@ -428,6 +432,11 @@ pub struct Extras {
     pub artefacts: Artefacts,
 }
 
+/// Whether a range is none (`[0, 0]`).
+fn is_none(range: &[f64; 2]) -> bool {
+    *range == [0.0, 0.0]
+}
+
 impl Extras {
     /// The sizes real rigs show: offsets within 0.1 rad either way, drag
     /// of 0.004 to 0.046 1/rad and Coulomb friction up to 0.07 rad/s^2
@@ -435,6 +444,7 @@ impl Extras {
     /// artefacts.
     pub const REAL_RIGS: Extras = Extras {
         offset: 0.1,
+        viscous: [0.0, 0.0],
         drag: [0.004, 0.046],
         coulomb: [0.0, 0.07],
         artefacts: Artefacts::NONE,
@@ -453,20 +463,21 @@ impl Extras {
             "the offset must be 0 or a positive angle, rad"
         );
         anyhow::ensure!(
-            range(self.drag) && range(self.coulomb),
-            "drag and Coulomb friction need finite ranges 0 <= LO <= HI"
+            range(self.viscous) && range(self.drag) && range(self.coulomb),
+            "viscous damping, drag and Coulomb friction need finite ranges 0 <= LO <= HI"
         );
         self.artefacts.check()
     }
 
     /// Draws them from `rng` onto `spec`: the offset added to its own,
-    /// drag and then Coulomb friction after its effects, the artefacts
-    /// set. Nothing is drawn for a part that is 0.
+    /// viscous damping, drag and then Coulomb friction after its effects,
+    /// the artefacts set. Nothing is drawn for a part that is 0.
     pub fn draw_onto(&self, spec: &mut LabSpec, rng: &mut ChaCha8Rng) {
         if self.offset > 0.0 {
             spec.offset += rng.random_range(-self.offset..=self.offset);
         }
         for (kind, [lo, hi]) in [
+            (EffectKind::Viscous, self.viscous),
             (EffectKind::Drag, self.drag),
             (EffectKind::Coulomb, self.coulomb),
         ] {

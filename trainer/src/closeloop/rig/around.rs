@@ -148,8 +148,8 @@ fn swings(parts: &[Part]) -> [f64; 2] {
     [(0.5 * end).clamp(0.03, hi), hi]
 }
 
-/// What real rigs add, around what the first parts show: drag and
-/// Coulomb friction where the diagnosis named them (each over half to 1.5
+/// What real rigs add, around what the first parts show: viscous
+/// damping, drag and Coulomb friction where the diagnosis named them (each over half to 1.5
 /// times its coefficients) unless it is the blob's own effect (`chosen`),
 /// else the given draw's; the given draw's offset.
 fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras {
@@ -170,6 +170,7 @@ fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras 
     };
     Extras {
         offset: given.offset,
+        viscous: named(EffectKind::Viscous, given.viscous),
         drag: named(EffectKind::Drag, given.drag),
         coulomb: named(EffectKind::Coulomb, given.coulomb),
         artefacts: given.artefacts,
@@ -211,7 +212,11 @@ pub fn tuning_set(cfg: &TrainConfig) -> LabCheckConfig {
     let e = &draw.extras;
     let mut dissipation: Vec<(EffectKind, [f64; 2])> =
         cfg.effect.iter().map(|e| (e.name, e.range)).collect();
-    for (kind, range) in [(EffectKind::Drag, e.drag), (EffectKind::Coulomb, e.coulomb)] {
+    for (kind, range) in [
+        (EffectKind::Viscous, e.viscous),
+        (EffectKind::Drag, e.drag),
+        (EffectKind::Coulomb, e.coulomb),
+    ] {
         if range[1] > 0.0 {
             dissipation.push((kind, range));
         }
@@ -228,5 +233,64 @@ pub fn tuning_set(cfg: &TrainConfig) -> LabCheckConfig {
         rates: slowest.is_finite().then_some([slowest, slowest]),
         mixed: false,
         dissipation: (!dissipation.is_empty()).then_some(dissipation),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::closeloop::parts::UsablePart;
+    use trainer_core::data::Rollout;
+    use trainer_core::diagnose;
+    use trainer_core::physics::{Effect, Pendulum};
+
+    /// 60 s of a 0.5 m string from 0.4 rad at 50 Hz with viscous damping
+    /// of 0.03 1/s and drag of 0.03 1/rad, as one part.
+    fn viscous_and_drag() -> Part {
+        let dt = 0.02;
+        let mut p = Pendulum::new(0.5);
+        p.g = 9.81;
+        p.effects = vec![
+            Effect::new(EffectKind::Viscous, 0.03),
+            Effect::new(EffectKind::Drag, 0.03),
+        ];
+        let xs = p.rollout([0.4, 0.0], 3000, dt);
+        let t: Vec<f64> = (0..xs.len()).map(|k| k as f64 * dt).collect();
+        let theta: Vec<f64> = xs.iter().map(|x| x[0]).collect();
+        let diagnosis = diagnose::diagnose_recording(&t, &theta).unwrap();
+        Part {
+            source: "viscous and drag".into(),
+            series: Rollout { id: 0, t, xs },
+            cut: 3000,
+            diagnosis,
+            offset: 0.0,
+            end: UsablePart {
+                steps: 3000,
+                gap_after_s: None,
+                at_rest_after_s: None,
+            },
+        }
+    }
+
+    /// The blob's effect drag, viscous damping diagnosed beside it: the
+    /// draws carry viscous damping around its diagnosis (half to 1.5
+    /// times, covering the truth), not drag, and the given Coulomb range.
+    #[test]
+    fn a_dissipation_named_beside_the_effect_is_drawn_around_its_diagnosis() {
+        let part = viscous_and_drag();
+        let named: Vec<EffectKind> = part.diagnosis.effects.iter().map(|e| e.name).collect();
+        assert!(named.contains(&EffectKind::Viscous), "{named:?}");
+        let given = Extras {
+            coulomb: [0.0, 0.07],
+            ..Extras::default()
+        };
+        let e = extras(&[part], Some(EffectKind::Drag), &given);
+        assert_eq!(e.drag, [0.0, 0.0]);
+        assert!(
+            e.viscous[0] <= 0.03 && 0.03 <= e.viscous[1],
+            "{:?}",
+            e.viscous
+        );
+        assert_eq!(e.coulomb, given.coulomb);
     }
 }
