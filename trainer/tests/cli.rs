@@ -4,7 +4,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{koopman, root, run_ok};
+use common::{import_at_rig_interval, koopman, root, run_ok};
 #[test]
 fn generate_is_deterministic_in_its_seed() {
     let dir = tempfile::tempdir().unwrap();
@@ -712,13 +712,7 @@ fn close_loop_from_a_rig_blob_ends_in_a_rig_blob_that_estimate_runs() {
     }
     // The blob runs as a user runs it, its effect named.
     let csv = d.join("rec.csv");
-    run_ok(
-        koopman()
-            .arg("import")
-            .arg(&rec)
-            .args(["--dt", "0.04", "--out"])
-            .arg(&csv),
-    );
+    import_at_rig_interval(&rec, &csv);
     let est = run_ok(
         koopman()
             .args(["estimate", "--g", "9.81", "--json", "--weights"])

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 mod common;
-use common::{koopman, root, run_ok};
+use common::{import_at_rig_interval, koopman, root, run_ok};
 
 /// `koopman generate --lab SEED` into `dir`: the files and their truth.
 fn lab(dir: &Path, seed: u64) -> Vec<serde_json::Value> {
@@ -365,13 +365,7 @@ fn a_bilinear_blob_for_a_string_trains_exports_and_estimates() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("--dt 0.04`"), "{err}");
-    run_ok(
-        koopman()
-            .arg("import")
-            .arg(&rec)
-            .args(["--dt", "0.04", "--out"])
-            .arg(&csv),
-    );
+    import_at_rig_interval(&rec, &csv);
     let text = run_ok(
         koopman()
             .arg("estimate")

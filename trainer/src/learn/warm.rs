@@ -63,6 +63,16 @@ fn linear(blob: &Blob<'_>, net: Net, k: usize, device: &Device) -> Result<Linear
 mod tests {
     use super::*;
     use estimator::Model;
+    use estimator::blob::Activation;
+
+    /// `mlp` on the one input `x`.
+    fn forward(mlp: &Mlp, x: &[f32], act: Activation, device: &Device) -> Vec<f32> {
+        let input = Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, x.len()]), device);
+        mlp.forward(input, act)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap()
+    }
 
     /// The shipped rig blob's MLPs, loaded into burn, compute what the
     /// estimator's own no_std MLPs compute on the same normalised states
@@ -80,27 +90,13 @@ mod tests {
         assert_eq!(norm.s[1], f64::from(model.blob().body.norm_s[1]));
         for x in [[0.0f32, 0.0], [0.8, -1.3], [-2.5, 3.0]] {
             let y_ref = model.encode(&x);
-            let y: Vec<f32> = enc
-                .forward(
-                    Tensor::<2>::from_data(TensorData::new(x.to_vec(), [1, 2]), &device),
-                    act,
-                )
-                .into_data()
-                .try_to_vec::<f32>()
-                .unwrap();
+            let y = forward(&enc, &x, act, &device);
             let scale = y_ref.iter().fold(1.0f32, |a, v| a.max(v.abs()));
             for (a, b) in y.iter().zip(&y_ref) {
                 assert!((a - b).abs() <= 1e-5 * scale, "{y:?} vs {y_ref:?}");
             }
             let x_ref = model.decode(&y_ref);
-            let x_back: Vec<f32> = dec
-                .forward(
-                    Tensor::<2>::from_data(TensorData::new(y_ref.to_vec(), [1, 16]), &device),
-                    act,
-                )
-                .into_data()
-                .try_to_vec::<f32>()
-                .unwrap();
+            let x_back = forward(&dec, &y_ref, act, &device);
             for (a, b) in x_back.iter().zip(&x_ref) {
                 assert!(
                     (a - b).abs() <= 1e-5 * (1.0 + b.abs()),

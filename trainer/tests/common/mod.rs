@@ -1,5 +1,5 @@
 //! What the command-line tests share: the `koopman` binary, running it
-//! expecting success, and the repository root.
+//! expecting success, importing a recording, and the repository root.
 
 use std::path::Path;
 use std::process::Command;
@@ -24,4 +24,16 @@ pub fn run_ok(cmd: &mut Command) -> String {
 /// The repository root (the shipped weights live there).
 pub fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+/// `koopman import rec --dt 0.04 --out csv` (the rig blob's interval),
+/// asserting it succeeds; its standard output.
+pub fn import_at_rig_interval(rec: &Path, csv: &Path) -> String {
+    run_ok(
+        koopman()
+            .arg("import")
+            .arg(rec)
+            .args(["--dt", "0.04", "--out"])
+            .arg(csv),
+    )
 }
