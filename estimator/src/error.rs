@@ -41,8 +41,8 @@ pub enum Error {
     /// A measurement holds NaN or an infinity, or is too large to be a
     /// real reading; the filter state was left unchanged.
     NonFiniteInput,
-    /// The innovation covariance `S` lost positive definiteness; the filter
-    /// state was left unchanged.
+    /// The innovation covariance `S` lost positive definiteness, or `P` a
+    /// variance (below zero); the filter state was left unchanged.
     FilterNotPositiveDefinite,
     /// An output buffer or argument has the wrong size.
     InputBadLength,
@@ -77,9 +77,7 @@ impl Error {
             Error::BlobBadReading => "blob: a parameter's reading is undefined on its range",
             Error::BlobMisaligned => "blob: weights not 4-byte aligned in memory",
             Error::NonFiniteInput => "input: measurement is NaN, infinite or absurdly large",
-            Error::FilterNotPositiveDefinite => {
-                "filter: innovation covariance not positive definite"
-            }
+            Error::FilterNotPositiveDefinite => "filter: covariance not positive definite",
             Error::InputBadLength => "input: buffer has the wrong length",
             Error::FilterNonFinite => "filter: update produced a non-finite state",
             Error::FilterNotStarted => "filter: no first measurement to predict from",

@@ -1,6 +1,7 @@
-//! Property tests (proptest, its default 256 cases per property, seeded by
-//! proptest's own deterministic runner unless PROPTEST_RNG_SEED says
-//! otherwise).
+//! Property tests (proptest, its default 256 cases per property, seeded
+//! at random each run unless PROPTEST_RNG_SEED fixes the seed; a failure
+//! found is kept in `*.proptest-regressions` beside the test and run
+//! first from then on).
 
 use estimator::{Error, Estimator, Model};
 use host_tests::shipped_blob;

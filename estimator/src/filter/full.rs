@@ -104,10 +104,20 @@ impl Estimator<'_> {
         }
         mirror_upper(&mut out);
         let finite = out.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
-        if finite {
+        if !finite {
+            return Err(Error::FilterNonFinite);
+        }
+        // A variance below zero, as in the update: far out of the training
+        // range `F(q)` expands, and prediction alone loses `P` in f32.
+        let variances_ok = self.model.family() == Family::Linear
+            || out
+                .iter()
+                .enumerate()
+                .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
+        if variances_ok {
             Ok((m, out))
         } else {
-            Err(Error::FilterNonFinite)
+            Err(Error::FilterNotPositiveDefinite)
         }
     }
 
