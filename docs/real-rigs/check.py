@@ -2,7 +2,8 @@
 video files and the three encoder swings): each as it is, with an
 offset of +-0.05 rad added, resampled to 5 Hz, and with 1% of its samples
 replaced by spikes (seed 36). Prints the length at the end, the verdict,
-the offset and the outliers."""
+the offset, the outliers and Q; under each, the physics peer's reading
+(`estimate --peer`) of the same import."""
 import csv, json, math, os, random, subprocess, sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -56,7 +57,7 @@ def run(path, label):
     if imp.returncode != 0:
         return {'error': imp.stderr.strip()[-200:]}
     est = subprocess.run([K, 'estimate', '--weights', os.path.join(ROOT, 'weights/rig.kkf'), csv_out,
-                          '--g', '9.81', '--json'], capture_output=True, text=True)
+                          '--g', '9.81', '--json', '--peer'], capture_output=True, text=True)
     if est.returncode != 0:
         return {'error': est.stderr.strip()[-200:]}
     lines = [json.loads(l) for l in est.stdout.splitlines() if l.strip().startswith('{')]
@@ -72,4 +73,6 @@ for name, rows in [(n, read_video(n)) for n in VIDEO] + [('encoder' + n[-2:], re
             print(f'{name:10s} {label:9s} ERROR {r["error"]}')
             continue
         L = r.get('params', [None])[0] if 'params' in r else r.get('length')
-        print(f'{name:10s} {label:9s} L={L} trust={r.get("trust")} reasons={r.get("trust_reasons")} offset={r.get("offset")} outliers={r.get("outliers")} glitches={r.get("glitches", r.get("dropped"))}')
+        print(f'{name:10s} {label:9s} L={L} trust={r.get("trust")} reasons={r.get("trust_reasons")} offset={r.get("offset")} outliers={r.get("outliers")} glitches={r.get("glitches", r.get("dropped"))} Q={r.get("q_factor")}')
+        p = r.get('peer', {})
+        print(f'{"":10s} {"peer":9s} L={p.get("length")} trusted={p.get("trusted")} doubts={p.get("doubts")} offset={p.get("offset")} Q={p.get("q_factor")}')

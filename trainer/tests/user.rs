@@ -187,10 +187,14 @@ fn the_rig_blob_reads_the_video_tracked_string() {
             .arg("--weights")
             .arg(&weights)
             .arg(&data)
-            .args(["--g", "9.81"]),
+            .args(["--g", "9.81", "--peer"]),
     );
     assert!(
         text.contains("length (simple, m)") && text.contains("viscous (1/s)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("peer (physics EKF): length (simple, m)"),
         "{text}"
     );
     let json = run_ok(
@@ -199,7 +203,7 @@ fn the_rig_blob_reads_the_video_tracked_string() {
             .arg("--weights")
             .arg(&weights)
             .arg(&data)
-            .args(["--g", "9.81", "--json"]),
+            .args(["--g", "9.81", "--json", "--peer"]),
     );
     let v: serde_json::Value = serde_json::from_str(json.lines().next().unwrap()).unwrap();
     let l = v["params"][0].as_f64().unwrap();
@@ -208,6 +212,13 @@ fn the_rig_blob_reads_the_video_tracked_string() {
     assert!((l / 1.0613 - 1.0).abs() < 0.02, "{l}");
     assert_eq!(v["trust"], "trusted", "{v}");
     assert_eq!(v["param_names"][1], "viscous");
+    // The physics peer over the same measurements: the same 2%, trusted
+    // from its NIS, and a quality factor.
+    let peer = &v["peer"];
+    let pl = peer["length"].as_f64().unwrap();
+    assert!((pl / 1.0613 - 1.0).abs() < 0.02, "{peer}");
+    assert_eq!(peer["trusted"], true, "{peer}");
+    assert!(peer["q_factor"].as_f64().is_some_and(|q| q > 0.0), "{peer}");
 }
 
 /// Many rollouts: more output than a pipe holds, so the writer meets the

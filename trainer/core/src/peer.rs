@@ -104,6 +104,18 @@ pub enum Doubt {
     Uncertain,
 }
 
+impl Doubt {
+    /// Its name, as serde writes it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Doubt::Pending => "pending",
+            Doubt::Inconsistent => "inconsistent",
+            Doubt::OutOfRange => "out_of_range",
+            Doubt::Uncertain => "uncertain",
+        }
+    }
+}
+
 /// What the peer reads at one point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Reading {
@@ -115,6 +127,10 @@ pub struct Reading {
     pub std: f64,
     /// The viscous damping `c`, 1/s.
     pub damping: f64,
+    /// The quality factor `sqrt(a) / c` (`w0 / c`), where `c` is above
+    /// zero.
+    #[serde(default)]
+    pub q_factor: Option<f64>,
     /// The angle's offset `b`, rad.
     pub offset: f64,
     /// The mean NIS over the last [`WINDOW`] updates, where any.
@@ -354,6 +370,7 @@ impl Peer {
             length,
             std,
             damping: self.x[3],
+            q_factor: (a > 0.0 && self.x[3] > 0.0).then(|| a.sqrt() / self.x[3]),
             offset: self.x[4],
             nis,
             doubts,

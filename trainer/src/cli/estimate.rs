@@ -6,6 +6,7 @@ use anyhow::Result;
 use estimator::blob::Body;
 use estimator::{Estimator, StepOutput};
 use trainer_core::data::{self, Rollout, SourceMeta};
+use trainer_core::peer::{self, Peer, PeerConfig, Reading};
 use trainer_core::track::figure::{self, Trace};
 use trainer_core::track::{Tracked, track_each};
 
@@ -55,6 +56,14 @@ pub struct Args {
     /// shaded and labelled with the reasons.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Run the physics peer beside the blob on each rollout: an
+    /// augmented-state extended Kalman filter on the known pendulum ODE
+    /// (`[theta, omega, w0^2, c, offset]`, viscous `c`; `trainer_core::peer`)
+    /// at the same g and over the same measurements. Its length, std,
+    /// quality factor `w0 / c`, offset and verdict (from its NIS) are
+    /// printed under the blob's row, or as `peer` in --json.
+    #[arg(long, conflicts_with = "follow")]
+    peer: bool,
 }
 
 impl Args {
@@ -109,10 +118,18 @@ pub fn run(a: Args) -> Result<()> {
         if let Some(dir) = &a.plot {
             report.plot(dir, r, steps)?;
         }
+        let peer = a
+            .peer
+            .then(|| report.peer(r, dt))
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("{}: peer: {e}", path.display()))?;
         if a.json {
-            report.json(r.id, &tracked, source)?;
+            report.json(r.id, &tracked, source, peer.as_ref())?;
         } else {
             report.text(r.id, &tracked, source)?;
+            if let Some(p) = &peer {
+                report.peer_text(p)?;
+            }
         }
     }
     Ok(())
@@ -191,6 +208,38 @@ impl<'a> Report<'a> {
             })
     }
 
+    /// The physics peer's reading of `r` (on the grid of `dt`), over the
+    /// measurements the blob read (`--steps`), at the same g and rig.
+    fn peer(&self, r: &Rollout, dt: f64) -> Result<Reading> {
+        let n = self.a.steps.unwrap_or(usize::MAX).min(r.xs.len());
+        let r = Rollout {
+            id: r.id,
+            t: r.t[..n].to_vec(),
+            xs: r.xs[..n].to_vec(),
+        };
+        let g = f64::from(self.a.g.unwrap_or(self.body.g));
+        let mut filter = Peer::new(PeerConfig::new(g, self.body.rig));
+        peer::track_each(&mut filter, &r, dt, |_, _| {})
+    }
+
+    /// The peer's line under the rollout's row.
+    fn peer_text(&self, p: &Reading) -> Result<()> {
+        let doubts: Vec<&str> = p.doubts.iter().map(|d| d.as_str()).collect();
+        super::say(&format!(
+            "         peer (physics EKF): {} {:.4} +- {:.4}, Q {}, offset {:.4} rad, {}",
+            self.body.rig.length_label(),
+            p.length,
+            p.std,
+            q_or_dash(p.q_factor.map(|q| q as f32)),
+            p.offset,
+            if doubts.is_empty() {
+                "trusted".to_string()
+            } else {
+                format!("untrusted ({})", doubts.join(", "))
+            }
+        ))
+    }
+
     /// The rollout's figure, in `dir`.
     fn plot(&self, dir: &Path, r: &Rollout, steps: Vec<(f64, StepOutput)>) -> Result<()> {
         let (a, body) = (self.a, &self.body);
@@ -224,6 +273,7 @@ impl<'a> Report<'a> {
         id: u32,
         tracked: &Tracked,
         source: Option<&SourceMeta>,
+        peer: Option<&Reading>,
     ) -> Result<()> {
         let (a, body, rig) = (self.a, &self.body, self.body.rig);
         let (out, n) = (&tracked.out, tracked.measured);
@@ -243,6 +293,13 @@ impl<'a> Report<'a> {
         });
         if let Some(s) = source {
             add_source(&mut v, s);
+        }
+        if let Some(p) = peer {
+            v["peer"] = serde_json::json!({
+                "length": p.length, "std": p.std, "damping": p.damping,
+                "q_factor": p.q_factor, "offset": p.offset, "nis": p.nis,
+                "trusted": p.trusted(), "doubts": p.doubts,
+            });
         }
         super::say(&v.to_string())
     }

@@ -136,7 +136,7 @@ impl<'m> Follow<'m> {
         };
         self.printed = tracked.measured;
         if json {
-            report.json(1, tracked, self.stream.source())
+            report.json(1, tracked, self.stream.source(), None)
         } else {
             report.text(1, tracked, self.stream.source())
         }

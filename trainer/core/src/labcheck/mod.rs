@@ -274,8 +274,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         };
         let omega = spec.w2().sqrt();
         let (end_swing, readable_halves) = spec.true_swings(quality::MIN_SWING);
-        let peer_omega = rig.w2(LAB_G, peer_end.length).sqrt();
-        let peer_q = (peer_end.damping > 0.0).then(|| peer_omega / peer_end.damping);
+        let peer_q = peer_end.q_factor;
         out.push(Outcome {
             end_swing,
             periods: spec.duration * omega / (2.0 * std::f64::consts::PI),
@@ -694,6 +693,7 @@ mod tests {
             length: 1.001,
             std: 0.001,
             damping: 0.05,
+            q_factor: Some(62.6),
             offset: 0.0,
             nis: Some(1.0),
             doubts: vec![],
