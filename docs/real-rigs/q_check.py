@@ -1,6 +1,7 @@
 """The quality factor of the shared real recordings: the blob's at the end
 (`koopman estimate --weights weights/rig.kkf --g 9.81 --json`: `q_factor`,
-`q_factor_std`, `q_swing`) beside the swing envelope's over the last third.
+`q_factor_std`, `q_swing`) beside the swing envelope's over the last third,
+and the physics peer's `w0 / c` (`--peer`, its viscous `c`).
 
 The envelope's method: the recording imported at 0.04 s; its turning points
 (where the rate changes sign, each moved to the vertex of the parabola
@@ -45,22 +46,23 @@ def envelope_q(path):
 
 
 with tempfile.TemporaryDirectory() as d:
-    print('| recording | blob Q at the end | 2 std | at swing (rad) | envelope Q, last third | at swing (rad) | half swings | blob / envelope | length verdict |')
-    print('| --- | --- | --- | --- | --- | --- | --- | --- | --- |')
+    print('| recording | blob Q at the end | 2 std | at swing (rad) | envelope Q, last third | at swing (rad) | half swings | blob / envelope | peer Q (w0 / c) | length verdict |')
+    print('| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |')
     for rel, opts in FILES:
         out = os.path.join(d, 'x.csv')
         subprocess.run([K, 'import', os.path.join(S, rel), '--dt', '0.04', '--out', out] + opts,
                        capture_output=True, check=True)
         est = subprocess.run([K, 'estimate', '--weights', os.path.join(ROOT, 'weights/rig.kkf'), out,
-                              '--g', '9.81', '--json'], capture_output=True, text=True, check=True)
+                              '--g', '9.81', '--json', '--peer'], capture_output=True, text=True, check=True)
         v = [json.loads(l) for l in est.stdout.splitlines()][-1]
         env = envelope_q(out)
         q, qs, sw = v.get('q_factor'), v.get('q_factor_std'), v.get('q_swing')
         name = os.path.basename(rel).rsplit('.', 1)[0]
         fmt = lambda x, p=1: '-' if x is None else f'{x:.{p}f}'
+        peer = fmt(v.get('peer', {}).get('q_factor'))
         if env:
             eq, esw, n = env
             ratio = f'{q / eq:.2f}' if q and math.isfinite(eq) else '-'
-            print(f'| {name} | {fmt(q)} | {fmt(qs and 2 * qs)} | {fmt(sw, 3)} | {eq:.1f} | {esw:.3f} | {n} | {ratio} | {v["trust"]} |')
+            print(f'| {name} | {fmt(q)} | {fmt(qs and 2 * qs)} | {fmt(sw, 3)} | {eq:.1f} | {esw:.3f} | {n} | {ratio} | {peer} | {v["trust"]} |')
         else:
-            print(f'| {name} | {fmt(q)} | {fmt(qs and 2 * qs)} | {fmt(sw, 3)} | - | - | - | - | {v["trust"]} |')
+            print(f'| {name} | {fmt(q)} | {fmt(qs and 2 * qs)} | {fmt(sw, 3)} | - | - | - | - | {peer} | {v["trust"]} |')
