@@ -41,8 +41,8 @@ pub enum Error {
     /// A measurement holds NaN or an infinity, or is too large to be a
     /// real reading; the filter state was left unchanged.
     NonFiniteInput,
-    /// The innovation covariance `S` lost positive definiteness, or `P` a
-    /// variance (below zero); the filter state was left unchanged.
+    /// The innovation covariance `S` lost positive definiteness, or `P`
+    /// has a negative variance; the filter state was left unchanged.
     FilterNotPositiveDefinite,
     /// An output buffer or argument has the wrong size.
     InputBadLength,

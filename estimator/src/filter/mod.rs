@@ -519,7 +519,9 @@ impl<'m> Estimator<'m> {
                 let mut n = 0.0;
                 // A measurement the update cannot take (its innovation
                 // covariance not positive definite in f32: a glitch on an
-                // ill-conditioned state) is refused like an outlier.
+                // ill-conditioned state) is refused like an outlier (and
+                // where even the prediction across it fails, the step is
+                // refused with the state unchanged).
                 let (m, new_p) = match self.predict_update(z, &mut n) {
                     Err(Error::FilterNotPositiveDefinite) => return self.refuse(f32::INFINITY),
                     other => other?,

@@ -32,8 +32,10 @@ impl Estimator<'_> {
     ///
     /// # Errors
     ///
-    /// [`Error::FilterNotStarted`] before the first measurement; on any
-    /// error the state is unchanged.
+    /// [`Error::FilterNotStarted`] before the first measurement;
+    /// [`Error::FilterNotPositiveDefinite`] where the bilinear family's
+    /// prediction would leave a negative variance (a state far outside the
+    /// training square); on any error the state is unchanged.
     ///
     /// # Examples
     ///

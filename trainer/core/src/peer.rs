@@ -102,6 +102,9 @@ pub enum Doubt {
     OutOfRange,
     /// The length's standard deviation above [`MAX_REL_STD`] of it.
     Uncertain,
+    /// No g declared: the length is read at an assumed one (set by the
+    /// caller that assumed it, as `koopman estimate` without `--g`).
+    GNotDeclared,
 }
 
 impl Doubt {
@@ -112,6 +115,7 @@ impl Doubt {
             Doubt::Inconsistent => "inconsistent",
             Doubt::OutOfRange => "out_of_range",
             Doubt::Uncertain => "uncertain",
+            Doubt::GNotDeclared => "g_not_declared",
         }
     }
 }
@@ -404,6 +408,19 @@ pub fn track_each(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_doubts_name_is_what_serde_writes() {
+        for d in [
+            Doubt::Pending,
+            Doubt::Inconsistent,
+            Doubt::OutOfRange,
+            Doubt::Uncertain,
+            Doubt::GNotDeclared,
+        ] {
+            assert_eq!(serde_json::to_value(d).unwrap(), d.as_str());
+        }
+    }
     use crate::data::import::{self, ImportOptions};
     use crate::data::lab::{Case, LAB_G, LabSpec, Stamps};
     use crate::physics::{Effect, EffectKind};

@@ -6,7 +6,7 @@ use anyhow::Result;
 use estimator::blob::Body;
 use estimator::{Estimator, StepOutput};
 use trainer_core::data::{self, Rollout, SourceMeta};
-use trainer_core::peer::{self, Peer, PeerConfig, Reading};
+use trainer_core::peer::{self, Doubt, Peer, PeerConfig, Reading};
 use trainer_core::track::figure::{self, Trace};
 use trainer_core::track::{Tracked, track_each};
 
@@ -209,7 +209,8 @@ impl<'a> Report<'a> {
     }
 
     /// The physics peer's reading of `r` (on the grid of `dt`), over the
-    /// measurements the blob read (`--steps`), at the same g and rig.
+    /// measurements the blob read (`--steps`), at the same g and rig;
+    /// without `--g` it is not trusted, as the blob's is not.
     fn peer(&self, r: &Rollout, dt: f64) -> Result<Reading> {
         let n = self.a.steps.unwrap_or(usize::MAX).min(r.xs.len());
         let r = Rollout {
@@ -219,7 +220,11 @@ impl<'a> Report<'a> {
         };
         let g = f64::from(self.a.g.unwrap_or(self.body.g));
         let mut filter = Peer::new(PeerConfig::new(g, self.body.rig));
-        peer::track_each(&mut filter, &r, dt, |_, _| {})
+        let mut reading = peer::track_each(&mut filter, &r, dt, |_, _| {})?;
+        if self.a.g.is_none() {
+            reading.doubts.push(Doubt::GNotDeclared);
+        }
+        Ok(reading)
     }
 
     /// The peer's line under the rollout's row.

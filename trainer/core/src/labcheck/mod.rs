@@ -198,7 +198,7 @@ pub struct Outcome {
     /// The true quality factor ([`crate::physics::quality::q_of`]) at the swing
     /// the blob's is read at (at `end_swing` where it gives none).
     pub q_true: f64,
-    /// The peer's `omega / c` at the end, where its `c` is positive.
+    /// The peer's `w0 / c` at the end, where its `c` is positive.
     pub peer_q: Option<f64>,
     /// Half swings of the true angle of at least [`quality::MIN_SWING`].
     pub readable_halves: usize,

@@ -1,6 +1,6 @@
 //! The quality factor's figures on lab-like recordings: the blob's (its
 //! online decay, [`estimator::StepOutput::q_factor`]) and the physics
-//! peer's (`omega / c`, its `c` viscous) against the truth
+//! peer's (`w0 / c`, its `c` viscous) against the truth
 //! ([`crate::physics::quality::q_of`]) at the swing the blob reads it at.
 
 use serde::Serialize;
@@ -39,7 +39,7 @@ pub struct QRow {
     pub none: usize,
     /// The median relative error of the blob's `Q`.
     pub median_error: f64,
-    /// The peer's `omega / c` within [`WITHIN`].
+    /// The peer's `w0 / c` within [`WITHIN`].
     pub peer_within: usize,
     /// Its median relative error.
     pub peer_median_error: f64,
@@ -126,7 +126,7 @@ pub fn markdown(tables: &[(String, Vec<QRow>)]) -> String {
         }
     };
     let mut s = format!(
-        "\nThe quality factor Q at the end (recordings of at least {MIN_PERIODS} periods whose true swing makes at least {MIN_HALVES} half swings of {MIN_SWING} rad or more; `dying`: those whose swing dies sooner, left out): the blob's, from its swing's decay, against the truth at the swing it is read at (its recent half swings' mean); the physics peer's omega / c beside it.\n"
+        "\nThe quality factor Q at the end (recordings of at least {MIN_PERIODS} periods whose true swing makes at least {MIN_HALVES} half swings of {MIN_SWING} rad or more; `dying`: those whose swing dies sooner, left out): the blob's, from its swing's decay, against the truth at the swing it is read at (its recent half swings' mean); the physics peer's w0 / c beside it.\n"
     );
     for (title, rows) in tables {
         s.push_str(&format!(
