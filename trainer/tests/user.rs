@@ -22,6 +22,21 @@ fn lab(dir: &Path, seed: u64) -> Vec<serde_json::Value> {
     truth.as_array().unwrap().clone()
 }
 
+/// `koopman estimate --weights weights --json csv args`: its first
+/// rollout's object.
+fn estimate_json(weights: &Path, csv: &Path, args: &[&str]) -> serde_json::Value {
+    let text = run_ok(
+        koopman()
+            .arg("estimate")
+            .arg("--weights")
+            .arg(weights)
+            .arg(csv)
+            .arg("--json")
+            .args(args),
+    );
+    serde_json::from_str(text.lines().next().unwrap()).unwrap()
+}
+
 fn diagnose_json(file: &Path, args: &[&str]) -> serde_json::Value {
     let text = run_ok(koopman().arg("diagnose").arg(file).arg("--json").args(args));
     serde_json::from_str(&text).unwrap()
@@ -197,15 +212,7 @@ fn the_rig_blob_reads_the_video_tracked_string() {
         text.contains("peer (physics EKF): length (simple, m)"),
         "{text}"
     );
-    let json = run_ok(
-        koopman()
-            .arg("estimate")
-            .arg("--weights")
-            .arg(&weights)
-            .arg(&data)
-            .args(["--g", "9.81", "--json", "--peer"]),
-    );
-    let v: serde_json::Value = serde_json::from_str(json.lines().next().unwrap()).unwrap();
+    let v = estimate_json(&weights, &data, &["--g", "9.81", "--peer"]);
     let l = v["params"][0].as_f64().unwrap();
     // g / w0^2 from the swing period of the same import (`koopman
     // diagnose --g 9.81`); the lab-check's 2% at the end.
@@ -514,15 +521,7 @@ fn the_physics_peer_reads_lab_recordings_beside_the_blob() {
         let rec = dir.path().join("lab").join(spec["file"].as_str().unwrap());
         let csv = dir.path().join("rec.csv");
         import_at_rig_interval(&rec, &csv);
-        let json = run_ok(
-            koopman()
-                .arg("estimate")
-                .arg("--weights")
-                .arg(&weights)
-                .arg(&csv)
-                .args(["--g", "9.81", "--json", "--peer"]),
-        );
-        let v: serde_json::Value = serde_json::from_str(json.lines().next().unwrap()).unwrap();
+        let v = estimate_json(&weights, &csv, &["--g", "9.81", "--peer"]);
         let peer = &v["peer"];
         let length = spec["length"].as_f64().unwrap();
         let simple = if spec["rig"] == "rod" {
@@ -551,16 +550,7 @@ fn the_physics_peer_reads_lab_recordings_beside_the_blob() {
     }
     assert_eq!(read, 8);
     // Without --g the peer reads at the blob's g, and is not trusted.
-    let csv = dir.path().join("rec.csv");
-    let json = run_ok(
-        koopman()
-            .arg("estimate")
-            .arg("--weights")
-            .arg(&weights)
-            .arg(&csv)
-            .args(["--json", "--peer"]),
-    );
-    let v: serde_json::Value = serde_json::from_str(json.lines().next().unwrap()).unwrap();
+    let v = estimate_json(&weights, &dir.path().join("rec.csv"), &["--peer"]);
     assert_eq!(v["peer"]["trusted"], false, "{v}");
     assert!(
         v["peer"]["doubts"]
