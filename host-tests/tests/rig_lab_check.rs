@@ -8,17 +8,19 @@
 //! The bars: the length within 2% at the end in at least 90%; within 5%
 //! after the first 64 measurements in at least 95%; more than 5% off and
 //! trusted (after 64 or at the end) in at most 2%; trusted at the end in
-//! at least 80% of those within 5% there. The blob reaches 96%, 98%, 0%
+//! at least 80% of those within 5% there. The blob reaches 95%, 97%, 0%
 //! and 85%, with a median error of 0.35% at the end (the README's table):
 //! a retrained or recalibrated blob that falls below a bar fails here.
 //!
 //! On real rigs' draws (offsets within 0.1 rad, sources at 5 to 240 Hz, a
 //! mixed dissipation in turn; 200 recordings, seed 12, a seed the
 //! estimator was tuned on, not the one reported): within 2% at the end
-//! in at least 92% (188, 94%, since the filter starts again, latent
+//! in at least 92% (187, 94%, since the filter starts again, latent
 //! included, once an offset of a fifth of the swing or more is
-//! subtracted; 174 before), at most 1% wrong and trusted (1), trusted at
-//! the end in at least 80% of those within 5% there (82%).
+//! subtracted; 174 before), within 5% after 64 in at least 72% (154,
+//! 77%, since such an offset is taken from the first two turning points;
+//! 142 from three), at most 1% wrong and trusted (1), trusted at the end
+//! in at least 80% of those within 5% there (82%).
 
 use estimator::Model;
 use host_tests::rig_blob;
@@ -58,6 +60,7 @@ fn the_rig_blob_reads_real_rigs_draws() {
     let c = &f.all;
     let share = |k: usize, n: usize| k as f64 / n as f64;
     assert!(share(c.end_within_2, c.n) >= 0.92, "{c:?}");
+    assert!(share(c.first_within_5, c.n) >= 0.72, "{c:?}");
     assert!(share(c.wrong_trusted, c.n) <= 0.01, "{c:?}");
     let [trusted, right] = c.trusted_of_right;
     assert!(share(trusted, right) >= 0.80, "{c:?}");
