@@ -20,7 +20,9 @@
 //! subtracted; 174 before), within 5% after 64 in at least 72% (154,
 //! 77%, since such an offset is taken from the first two turning points;
 //! 142 from three), at most 1% wrong and trusted (1), trusted at the end
-//! in at least 80% of those within 5% there (82%).
+//! in at least 88% of those within 5% there (91%, since a swing never as
+//! wide as the blob's smallest trusted is read once 12 half swings of at
+//! least 0.03 rad are; 82% before).
 
 use estimator::Model;
 use host_tests::rig_blob;
@@ -63,5 +65,5 @@ fn the_rig_blob_reads_real_rigs_draws() {
     assert!(share(c.first_within_5, c.n) >= 0.72, "{c:?}");
     assert!(share(c.wrong_trusted, c.n) <= 0.01, "{c:?}");
     let [trusted, right] = c.trusted_of_right;
-    assert!(share(trusted, right) >= 0.80, "{c:?}");
+    assert!(share(trusted, right) >= 0.88, "{c:?}");
 }

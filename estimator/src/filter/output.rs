@@ -80,8 +80,9 @@ pub struct StepOutput {
     pub unevenness: Option<f32>,
     /// Whether the parameters, their standard deviations and the
     /// coordinates are held: the recent swing is below the blob's smallest
-    /// trusted, and these are the filter's after the last measurement
-    /// whose swing was not. The filter runs on; a swing never that wide
+    /// trusted (0.03 rad once 12 half swings that wide are read), and
+    /// these are the filter's after the last measurement whose swing was
+    /// not. The filter runs on; a swing never that wide
     /// is reported as it is (and flagged
     /// [`Reason::SmallSwing`](crate::Reason::SmallSwing)).
     pub held: bool,
@@ -140,7 +141,8 @@ impl Estimator<'_> {
         // estimate of the last swing that was not: a swing that small
         // moves the filter by the model's error and the noise, not by
         // what the length is.
-        let small = self.swing.recent().is_some_and(|s| s < calib.min_swing);
+        let floor = self.swing_floor();
+        let small = self.swing.recent().is_some_and(|s| s < floor);
         let held = self.held.filter(|_| small);
         let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.mean), self.param_std));
         let specs = &blob.body.params;
@@ -186,7 +188,7 @@ impl Estimator<'_> {
                     .kinematics
                     .ratio()
                     .is_none_or(|r| libm::fabsf(r - 1.0) <= calib.max_rate_mismatch),
-            swing_ok: swing.is_none_or(|a| a >= calib.min_swing),
+            swing_ok: swing.is_none_or(|a| a >= floor),
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
             source_ok: self.source_ok(length, calib.min_samples_per_period),

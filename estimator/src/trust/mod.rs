@@ -40,7 +40,7 @@ pub(crate) use swing::SwingWindow;
 /// | [`Reason::NonPhysical`] | a declared parameter is not finite, or not positive where it was trained on positive values only | a length below zero |
 /// | [`Reason::OutsideRange`] | the first parameter's coordinate lies outside the range held-out rollouts reach | |
 /// | [`Reason::OutsideEnvelope`] | more of some [`WINDOW`](crate::WINDOW) consecutive states since the start than calibrated lie off the training envelope ([`crate::blob::Envelope`]; at the estimated parameter once past the burn-in) | a swing wider or smaller than trained, damping, a torque |
-/// | [`Reason::SmallSwing`] | the widest swing since the start is below the blob's smallest trusted | a model least accurate at the edge of its training |
+/// | [`Reason::SmallSwing`] | the widest swing since the start is below the blob's smallest trusted (or, once 12 half swings of at least 0.03 rad are read, below 0.03 rad) | a model least accurate at the edge of its training, and read over a few periods |
 /// | [`Reason::UnevenSwing`] | the largest unevenness remembered of a swing at least the smallest trusted is above the blob's largest | friction, a torque or a sensor offset the envelope does not see |
 /// | [`Reason::Inconsistent`] | the mean normalised innovation squared since the burn-in, scaled by the blob's law (the consistency law), is above the blob's largest, from the [`WINDOW`](crate::WINDOW)-th update on | noise heavier than trained, an effect the model lacks |
 /// | [`Reason::RateMismatch`] | the measured rate departs from the angle's change over the blob's interval by more than the blob allows, from the [`WINDOW`](crate::WINDOW)-th update on | another interval, a rate in other units |
