@@ -5,7 +5,7 @@
 //! and where it dies below 0.03 rad, the estimate is held from the swing
 //! before. Without the lower floor it was flagged to the end (on the
 //! real-rig lab-check's seeds 12, 14, 15 and 16, 91 of the 764 right
-//! lengths were flagged for the swing alone; with it, 24).
+//! lengths were flagged for the swing alone; with it, 30).
 
 use estimator::{Estimator, Model, Reason, StepOutput, Trust};
 use host_tests::rig_blob;
