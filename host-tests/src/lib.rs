@@ -6,6 +6,13 @@
 
 use std::path::PathBuf;
 
+use estimator::{Estimator, Model, StepOutput};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use trainer_core::data::import::{self, ImportOptions};
+use trainer_core::data::lab::{LAB_G, LabSpec};
+use trainer_core::track::track_each;
+
 pub mod synthetic;
 
 /// The workspace root.
@@ -23,6 +30,30 @@ pub fn shipped_blob() -> Vec<u8> {
 pub fn rig_blob() -> Vec<u8> {
     let p = root().join("weights/rig.kkf");
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// A lab-like recording `spec` (its noise drawn from `seed`) read as
+/// `koopman estimate` reads a user's file with the blob for real rigs:
+/// imported at the blob's interval, gravity (9.81) and the source's own
+/// interval declared. Every step's estimate, and the blob's interval, s.
+pub fn read_with_rig_blob(spec: &LabSpec, seed: u64) -> (Vec<StepOutput>, f64) {
+    let bytes = rig_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let dt = f64::from(m.blob().body.dt);
+    let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(seed));
+    let opts = ImportOptions {
+        dt,
+        ..ImportOptions::default()
+    };
+    let r = import::to_rollout(&rec, 0, &opts).unwrap();
+    let mut est = Estimator::new(&m)
+        .with_gravity(LAB_G as f32)
+        .unwrap()
+        .with_source_interval((1.0 / spec.rate) as f32)
+        .unwrap();
+    let mut outs = Vec::new();
+    track_each(&mut est, &r, dt, None, |_, out| outs.push(out.clone())).unwrap();
+    (outs, dt)
 }
 
 /// The protocol's 64-step window of one test rollout (L = 3.5) that the

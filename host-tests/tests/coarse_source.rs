@@ -9,21 +9,14 @@
 //!   trusted.
 //! - 0.3 m at 2 Hz (2.2 frames a period, below it): flagged to the end.
 
-use estimator::{Estimator, Model, Reason, StepOutput, Trust};
-use host_tests::rig_blob;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use trainer_core::data::import::{self, ImportOptions};
-use trainer_core::data::lab::{Artefacts, Case, LAB_G, LabSpec, Stamps};
+use estimator::{Reason, StepOutput, Trust};
+use host_tests::read_with_rig_blob;
+use trainer_core::data::lab::{Artefacts, Case, LabSpec, Stamps};
 use trainer_core::physics::{Effect, EffectKind, Rig};
-use trainer_core::track::track_each;
 
 /// A `length` m string released at 0.4 rad with a little drag, filmed at
 /// `rate` Hz for 60 s: every estimate, and the blob's interval.
 fn read(length: f64, rate: f64) -> (Vec<StepOutput>, f64) {
-    let bytes = rig_blob();
-    let m = Model::from_bytes(&bytes).unwrap();
-    let dt = f64::from(m.blob().body.dt);
     let spec = LabSpec {
         case: Case::Drag,
         length,
@@ -39,20 +32,7 @@ fn read(length: f64, rate: f64) -> (Vec<StepOutput>, f64) {
         forcing: None,
         artefacts: Artefacts::NONE,
     };
-    let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(5));
-    let opts = ImportOptions {
-        dt,
-        ..ImportOptions::default()
-    };
-    let r = import::to_rollout(&rec, 0, &opts).unwrap();
-    let mut est = Estimator::new(&m)
-        .with_gravity(LAB_G as f32)
-        .unwrap()
-        .with_source_interval((1.0 / rate) as f32)
-        .unwrap();
-    let mut outs = Vec::new();
-    track_each(&mut est, &r, dt, None, |_, out| outs.push(out.clone())).unwrap();
-    (outs, dt)
+    read_with_rig_blob(&spec, 5)
 }
 
 /// Flagged as a coarse source, or still pending (a burn-in).

@@ -7,21 +7,14 @@
 //! real-rig lab-check's seeds 12, 14, 15 and 16, 91 of the 764 right
 //! lengths were flagged for the swing alone; with it, 30).
 
-use estimator::{Estimator, Model, Reason, StepOutput, Trust};
-use host_tests::rig_blob;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use trainer_core::data::import::{self, ImportOptions};
-use trainer_core::data::lab::{Artefacts, Case, LAB_G, LabSpec, Stamps};
+use estimator::{Reason, StepOutput, Trust};
+use host_tests::read_with_rig_blob;
+use trainer_core::data::lab::{Artefacts, Case, LabSpec, Stamps};
 use trainer_core::physics::{Effect, EffectKind, Rig};
-use trainer_core::track::track_each;
 
 /// A 0.5 m string released at `theta0` rad with `effect`, filmed at 30
 /// Hz for `seconds`: every estimate.
 fn read(theta0: f64, effect: Effect, seconds: f64) -> Vec<StepOutput> {
-    let bytes = rig_blob();
-    let m = Model::from_bytes(&bytes).unwrap();
-    let dt = f64::from(m.blob().body.dt);
     let spec = LabSpec {
         case: Case::Drag,
         length: 0.5,
@@ -37,20 +30,7 @@ fn read(theta0: f64, effect: Effect, seconds: f64) -> Vec<StepOutput> {
         forcing: None,
         artefacts: Artefacts::NONE,
     };
-    let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(7));
-    let opts = ImportOptions {
-        dt,
-        ..ImportOptions::default()
-    };
-    let r = import::to_rollout(&rec, 0, &opts).unwrap();
-    let mut est = Estimator::new(&m)
-        .with_gravity(LAB_G as f32)
-        .unwrap()
-        .with_source_interval(1.0 / 30.0)
-        .unwrap();
-    let mut outs = Vec::new();
-    track_each(&mut est, &r, dt, None, |_, out| outs.push(out.clone())).unwrap();
-    outs
+    read_with_rig_blob(&spec, 7).0
 }
 
 fn small(out: &StepOutput) -> bool {

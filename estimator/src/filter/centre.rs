@@ -318,19 +318,26 @@ mod tests {
         assert!((fed[0] - a_end * libm::cosf(core::f32::consts::TAU * t)).abs() < 2e-3);
     }
 
+    /// A steady swing of amplitude `a` about `c`, sampled `per_period`
+    /// times a period from a turning point: the centre after the `k`-th
+    /// measurement, for each `k` in turn.
+    fn swing_about(c: f32, a: f32, per_period: f32) -> impl FnMut(u32) -> Centre {
+        let w = core::f32::consts::TAU;
+        let mut centre = Centre::default();
+        move |k: u32| {
+            let t = k as f32 / per_period;
+            centre.push(c + a * libm::cosf(w * t), -a * w * libm::sinf(w * t));
+            centre
+        }
+    }
+
     /// An offset of 0.03 rad on a swing of 0.3 rad is subtracted from the
     /// first triple on (turns at a half, one and one and a half periods):
     /// not before it, and within 2e-3 rad of the truth after.
     #[test]
     fn an_offset_is_subtracted_from_the_first_triple() {
-        let (c, a, per_period) = (0.03f32, 0.3f32, 25.0f32);
-        let w = core::f32::consts::TAU;
-        let mut centre = Centre::default();
-        let mut at = |k: u32| {
-            let t = k as f32 / per_period;
-            centre.push(c + a * libm::cosf(w * t), -a * w * libm::sinf(w * t));
-            centre
-        };
+        let mut at = swing_about(0.03, 0.3, 25.0);
+        let c = 0.03;
         for k in 0..35 {
             assert!(!at(k).subtracting(), "{k}");
         }
@@ -346,14 +353,8 @@ mod tests {
     /// truth, the triple's mean taking over after it.
     #[test]
     fn an_offset_most_of_the_swing_is_subtracted_from_the_first_pair() {
-        let (c, a, per_period) = (0.06f32, 0.1f32, 25.0f32);
-        let w = core::f32::consts::TAU;
-        let mut centre = Centre::default();
-        let mut at = |k: u32| {
-            let t = k as f32 / per_period;
-            centre.push(c + a * libm::cosf(w * t), -a * w * libm::sinf(w * t));
-            centre
-        };
+        let mut at = swing_about(0.06, 0.1, 25.0);
+        let c = 0.06;
         for k in 0..23 {
             assert!(!at(k).subtracting(), "{k}");
         }
