@@ -40,9 +40,10 @@ pub(crate) const MIN_HALVES: u16 = 8;
 /// (calibrated on estimates a window in, where a small swing has given a
 /// period or two), is [`MIN_AMPLITUDE`]. On the real-rig lab-check's
 /// seeds 12, 14, 15 and 16 (800 recordings), the right lengths trusted at
-/// the end: 616 of 764 with the blob's alone; from 16, 673; from 12, 677;
-/// from 10, 684; none more wrong and trusted, there or on 80 recordings
-/// of 10 to 20 minutes (seed 41). Without the hold below the floor (the
+/// the end: 616 of 764 with the blob's alone; from 16, 673; from 12, 678;
+/// from 10, 684 (for any swing; for one never as wide, from 12, 677);
+/// none more wrong and trusted, there or on 80 recordings of 10 to 20
+/// minutes (seed 41). Without the hold below the floor (the
 /// estimate at the end, whatever the swing then), 8 let one more wrong
 /// length through, and 12 two of the long ones.
 pub(crate) const LONG_HALVES: u16 = 12;
