@@ -89,26 +89,27 @@ impl Estimator<'_> {
     /// swing) the filter starts again from the blob's prior, the latent's
     /// covariance too (the latent it tracked was the moved angles'; with it
     /// kept, 174 of 200 were within 2% at the end on lab-check seed 12
-    /// rather than 188, both from a share of 0.1); otherwise the parameters' variances widen [`REOPEN`]
-    /// times (at most to the prior) about the estimate so far, the latent's
-    /// kept. Either way the parameters are uncorrelated with the latent,
-    /// the verdict's corrections and innovations count again after a new
-    /// burn-in (in which the envelope is read at any length), and the
-    /// swings, the envelope and the held estimate are read afresh.
+    /// rather than 188, both from a share of 0.1); otherwise the
+    /// parameters' variances widen [`REOPEN`] times (at most to the prior)
+    /// about the estimate so far, the latent's kept. Either way the
+    /// parameters are uncorrelated with the latent, the verdict's
+    /// corrections and innovations count again after a new burn-in (in
+    /// which the envelope is read at any length), and the swings, the
+    /// envelope and the held estimate are read afresh.
     #[cold]
     #[inline(never)]
     pub(super) fn reopen_params(&mut self, afresh: bool) {
-        // Only the schedule's replay can fail: then the parameters stay.
-        let Ok(mut p) = self.current_covariance() else {
-            return;
-        };
         let spec = &self.model.blob().body.filter;
-        if afresh {
-            p = super::full::prior_covariance(spec);
+        let p = if afresh {
             for (m, prior) in self.mean.iter_mut().skip(LATENT_DIM).zip(&spec.prior_mean) {
                 *m = *prior;
             }
+            super::full::prior_covariance(spec)
         } else {
+            // Only the schedule's replay can fail: then the parameters stay.
+            let Ok(mut p) = self.current_covariance() else {
+                return;
+            };
             for (i, row) in p.iter_mut().enumerate() {
                 for (j, v) in row.iter_mut().enumerate() {
                     if i >= LATENT_DIM || j >= LATENT_DIM {
@@ -122,7 +123,8 @@ impl Estimator<'_> {
                     }
                 }
             }
-        }
+            p
+        };
         self.p = p;
         self.bridged = true;
         // The verdict starts again: a burn-in, then the corrections.
