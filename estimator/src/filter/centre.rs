@@ -259,6 +259,17 @@ impl Centre {
         self.applied != 0.0
     }
 
+    /// The middle of the last two turning points, rad.
+    pub(crate) fn middle(&self) -> f32 {
+        let [t1, t2] = self.turns;
+        0.5 * (t1 + t2)
+    }
+
+    /// The offset subtracted now, rad.
+    pub(crate) fn applied(&self) -> f32 {
+        self.applied
+    }
+
     /// The offset subtracted as a share of the last half swing's amplitude
     /// (half the range between the last two turning points).
     pub(crate) fn share_of_swing(&self) -> f32 {

@@ -69,6 +69,7 @@ mod decay;
 mod full;
 mod kernels;
 mod output;
+mod period;
 mod unobserved;
 mod scheduled;
 mod two_stage;
@@ -77,12 +78,18 @@ pub use output::StepOutput;
 
 use centre::Centre;
 use decay::Decay;
+use period::Period;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
 use crate::model::{Model, Tail};
 use crate::trust::{EnvelopeWindow, Spread, SwingWindow};
 use crate::trust::{Consistency, Kinematics};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
+
+/// A held estimate: the parameters' coordinates, the filter's standard
+/// deviations of them and the period's `w0^2` with its relative standard
+/// deviation.
+type Held = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>);
 
 /// `[y; p]` as a vector.
 pub type AugVector = SVector<f32, AUG_DIM>;
@@ -143,7 +150,7 @@ pub struct Estimator<'m> {
     /// of them after the latest measurement whose latest swing was at
     /// least the blob's smallest trusted: what is reported while the
     /// recent swing is smaller ([`StepOutput::held`]).
-    held: Option<([f32; PARAM_DIM], [f32; PARAM_DIM])>,
+    held: Option<Held>,
     /// Declared gravity over the blob's training gravity: what a parameter
     /// that [`scales_with_g`](crate::blob::ParamSpec::scales_with_g)
     /// reads as, times its trained value (1 until declared).
@@ -156,6 +163,8 @@ pub struct Estimator<'m> {
     centre: Centre,
     /// The swing's decay ([`StepOutput::q_factor`]).
     decay: Decay,
+    /// The swing's period ([`StepOutput::period_length`]).
+    period: Period,
     /// Measurements refused as outliers so far, in a row now, and whether
     /// the last one was.
     outliers: u32,
@@ -195,6 +204,7 @@ impl<'m> Estimator<'m> {
             g_ratio: 1.0,
             centre: Centre::default(),
             decay: Decay::default(),
+            period: Period::default(),
             outliers: 0,
             outlier_run: 0,
             outlier: false,
@@ -426,14 +436,31 @@ impl<'m> Estimator<'m> {
         // A refused measurement leaves no turning point behind (and breaks
         // their chain); a taken one may give the offset, subtracted from
         // the next measurement on, and end a half swing.
-        self.decay.tick(self.model.blob().body.dt);
+        let dt = self.model.blob().body.dt;
+        self.decay.tick(dt);
         if out.outlier {
             self.centre.gap();
+            self.period.gap();
         } else {
             let was = self.centre.subtracting();
+            let [x, _] = centred;
+            self.period.push(x);
             if let Some(half) = self.centre.push(theta, rate) {
                 self.decay.turn(half);
+                // The source's own interval where coarser than the steps.
+                let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
+                self.period.turn(half, self.centre.middle() - (theta - x), dt, source_dt);
+                // A moved offset moves the next crossing: the run ends.
+                if libm::fabsf(self.centre.applied() - (theta - x)) > period::OFFSET_MOVE {
+                    self.period.restart();
+                }
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
+                if !out.held {
+                    let period;
+                    (out.params, out.param_std, period) = self.fused(&out);
+                    (out.period_length, out.period_length_std) =
+                        (period.map(|p| p.0), period.map(|p| p.1));
+                }
             }
             if !was && self.centre.subtracting() {
                 self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
@@ -605,7 +632,7 @@ impl<'m> Estimator<'m> {
         let settled_again = self.burn_until == 0
             || self.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
         if self.swing.push(theta, rate, min_swing) >= self.swing_floor() && settled_again {
-            self.held = Some((*tail(&self.mean), self.param_std));
+            self.held = Some((*tail(&self.mean), self.param_std, self.period.omega_squared()));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);

@@ -110,6 +110,13 @@ pub struct StepOutput {
     pub q_factor_std: Option<f32>,
     /// The swing, rad, `q_factor` is at (the recent half swings' mean).
     pub q_swing: Option<f32>,
+    /// The length the swing's period gives, at the declared gravity, m
+    /// (`None` before four half swings of at least 0.03 rad, or for a
+    /// blob whose first parameter is not a length): joined with the
+    /// filter's in `params[0]`, each weighted by its inverse variance.
+    pub period_length: Option<f32>,
+    /// Its standard deviation, m.
+    pub period_length_std: Option<f32>,
 }
 
 /// One parameter as reported.
@@ -144,17 +151,11 @@ impl Estimator<'_> {
         let floor = self.swing_floor();
         let small = self.swing.recent().is_some_and(|s| s < floor);
         let held = self.held.filter(|_| small);
-        let (coordinate, coordinate_std) = held.unwrap_or((*tail(&self.mean), self.param_std));
+        let (coordinate, coordinate_std, w0_squared) =
+            held.unwrap_or((*tail(&self.mean), self.param_std, self.period.omega_squared()));
         let specs = &blob.body.params;
-        let read: [ParamRead; PARAM_DIM] = core::array::from_fn(|k| {
-            let at = |a: &[f32; PARAM_DIM]| a.get(k).copied().unwrap_or(f32::NAN);
-            let std_calibration = [at(&calib.std_scale), at(&calib.std_floor)];
-            specs.get(k).map_or(ParamRead::NONE, |spec| {
-                self.read_param(spec, at(&coordinate), at(&coordinate_std), std_calibration)
-            })
-        });
-        let params = read.map(|r| r.value);
-        let param_std = read.map(|r| r.std);
+        let read = self.read_params(&coordinate, &coordinate_std);
+        let (params, param_std, period) = self.with_period(&read, w0_squared);
         let (offset, offset_std) = self.centre.offset();
         let (q_factor, q_factor_std, q_swing) = self.decay.q_factor();
         let sigma = self.spread.sigma();
@@ -217,7 +218,72 @@ impl Estimator<'_> {
             q_factor,
             q_factor_std,
             q_swing,
+            period_length: period.map(|p| p.0),
+            period_length_std: period.map(|p| p.1),
         }
+    }
+
+    /// The parameters at the coordinates `q` with the filter's standard
+    /// deviations `q_std`, read with the blob's calibration.
+    fn read_params(
+        &self,
+        q: &[f32; PARAM_DIM],
+        q_std: &[f32; PARAM_DIM],
+    ) -> [ParamRead; PARAM_DIM] {
+        let body = &self.model.blob().body;
+        let calib = &body.trust;
+        core::array::from_fn(|k| {
+            let at = |a: &[f32; PARAM_DIM]| a.get(k).copied().unwrap_or(f32::NAN);
+            let std_calibration = [at(&calib.std_scale), at(&calib.std_floor)];
+            body.params.get(k).map_or(ParamRead::NONE, |spec| {
+                self.read_param(spec, at(q), at(q_std), std_calibration)
+            })
+        })
+    }
+
+    /// The parameters and standard deviations reported from the filter's
+    /// `read`, the length joined with the period's (`w0_squared`, `w0^2`
+    /// and its relative standard deviation) where there is one, each
+    /// weighted by its inverse variance, and the period's length with its
+    /// standard deviation.
+    fn with_period(
+        &self,
+        read: &[ParamRead; PARAM_DIM],
+        w0_squared: Option<(f32, f32)>,
+    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
+        let mut params = read.map(|r| r.value);
+        let mut param_std = read.map(|r| r.std);
+        let body = &self.model.blob().body;
+        let is_length = body
+            .params
+            .first()
+            .is_some_and(|spec| spec.declared && spec.scales_with_g);
+        let period = w0_squared
+            .filter(|_| is_length)
+            .map(|(w2, rel)| {
+                let length = self.g_ratio * body.g / (w2 * body.rig.equivalent_fraction());
+                (length, rel * length)
+            });
+        if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
+        {
+            let (vk, vp) = (*s * *s, sp * sp);
+            if vk.is_finite() && vk + vp > 0.0 {
+                *l += vk / (vk + vp) * (lp - *l);
+                *s = libm::sqrtf(vk * vp / (vk + vp));
+            }
+        }
+        (params, param_std, period)
+    }
+
+    /// The step's parameters, standard deviations and period length after
+    /// a turning point moved the period (`out` the step's report before,
+    /// not held).
+    pub(super) fn fused(
+        &self,
+        out: &StepOutput,
+    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
+        let read = self.read_params(&out.coordinate, &out.coordinate_std);
+        self.with_period(&read, self.period.omega_squared())
     }
 
     /// Whether the declared source gives at least `min_samples` samples a

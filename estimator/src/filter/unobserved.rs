@@ -79,6 +79,7 @@ impl Estimator<'_> {
         self.kinematics.gap();
         self.centre.gap();
         self.decay.tick(self.model.blob().body.dt);
+        self.period.gap();
         self.t = self.t.saturating_add(1);
         Ok(())
     }

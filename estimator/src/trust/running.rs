@@ -73,12 +73,14 @@ pub fn consistency_statistic(
         return Some(nis);
     }
     let floor = |v: f32| if v > 1e-6 { v } else { 1e-6 };
-    let scale = match swing {
-        Some(s) => libm::powf(floor(s), b),
-        None if b == 0.0 => 1.0,
+    // `length^a / swing^b` as one exponential of two logarithms (a third
+    // of two powers' arithmetic on the device).
+    let ln_swing = match swing {
+        Some(s) => libm::logf(floor(s)),
+        None if b == 0.0 => 0.0,
         None => return None,
     };
-    Some(nis * libm::powf(floor(length), a) / scale)
+    Some(nis * libm::expf(a * libm::logf(floor(length)) - b * ln_swing))
 }
 
 /// Whether the measured rate matches the angle's change: over consecutive

@@ -127,6 +127,10 @@ pub struct At {
     pub q_factor_std: Option<f32>,
     /// The swing it is at, rad.
     pub q_swing: Option<f32>,
+    /// The length the swing's period gives, m, and its standard deviation.
+    pub period_length: Option<f32>,
+    /// Its standard deviation.
+    pub period_length_std: Option<f32>,
 }
 
 /// Writes a verdict as its word.
@@ -155,6 +159,8 @@ impl At {
             q_factor: out.q_factor,
             q_factor_std: out.q_factor_std,
             q_swing: out.q_swing,
+            period_length: out.period_length,
+            period_length_std: out.period_length_std,
         }
     }
 
@@ -682,6 +688,8 @@ mod tests {
             q_factor: None,
             q_factor_std: None,
             q_swing: None,
+            period_length: None,
+            period_length_std: None,
         }
     }
 

@@ -353,6 +353,8 @@ mod tests {
             q_factor: None,
             q_factor_std: None,
             q_swing: None,
+            period_length: None,
+            period_length_std: None,
         }
     }
 
