@@ -450,10 +450,8 @@ impl<'m> Estimator<'m> {
                 // The source's own interval where coarser than the steps.
                 let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
                 self.period.turn(half, self.centre.middle() - (theta - x), dt, source_dt);
-                // A moved offset moves the next crossing: the run ends.
-                if libm::fabsf(self.centre.applied() - (theta - x)) > period::OFFSET_MOVE {
-                    self.period.restart();
-                }
+                // A moved offset moves the half swings' middles with it.
+                self.period.shift(self.centre.applied() - (theta - x));
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
                 if !out.held {
                     let period;

@@ -155,7 +155,7 @@ impl Estimator<'_> {
             held.unwrap_or((*tail(&self.mean), self.param_std, self.period.omega_squared()));
         let specs = &blob.body.params;
         let read = self.read_params(&coordinate, &coordinate_std);
-        let (params, param_std, period) = self.with_period(&read, w0_squared);
+        let (params, param_std, period) = self.with_period(&read, &coordinate, w0_squared);
         let (offset, offset_std) = self.centre.offset();
         let (q_factor, q_factor_std, q_swing) = self.decay.q_factor();
         let sigma = self.spread.sigma();
@@ -242,13 +242,15 @@ impl Estimator<'_> {
     }
 
     /// The parameters and standard deviations reported from the filter's
-    /// `read`, the length joined with the period's (`w0_squared`, `w0^2`
-    /// and its relative standard deviation) where there is one, each
-    /// weighted by its inverse variance, and the period's length with its
-    /// standard deviation.
+    /// `read` at the coordinates `q`, the length joined with the period's
+    /// (`w0_squared`, `w0^2` and its relative standard deviation) where
+    /// there is one, each weighted by its inverse variance, and the
+    /// period's length with its standard deviation. Outside the range the
+    /// filter's deviations are calibrated on, the period's alone.
     fn with_period(
         &self,
         read: &[ParamRead; PARAM_DIM],
+        q: &[f32; PARAM_DIM],
         w0_squared: Option<(f32, f32)>,
     ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
         let mut params = read.map(|r| r.value);
@@ -266,8 +268,13 @@ impl Estimator<'_> {
             });
         if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
         {
-            let (vk, vp) = (*s * *s, sp * sp);
-            if vk.is_finite() && vk + vp > 0.0 {
+            let [lo, hi] = body.trust.range;
+            let calibrated = q.first().is_some_and(|q| *q >= lo && *q <= hi);
+            let vk = if calibrated { *s * *s } else { f32::INFINITY };
+            let vp = sp * sp;
+            if !vk.is_finite() {
+                (*l, *s) = (lp, sp);
+            } else if vk + vp > 0.0 {
                 *l += vk / (vk + vp) * (lp - *l);
                 *s = libm::sqrtf(vk * vp / (vk + vp));
             }
@@ -283,7 +290,7 @@ impl Estimator<'_> {
         out: &StepOutput,
     ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
         let read = self.read_params(&out.coordinate, &out.coordinate_std);
-        self.with_period(&read, self.period.omega_squared())
+        self.with_period(&read, &out.coordinate, self.period.omega_squared())
     }
 
     /// Whether the declared source gives at least `min_samples` samples a

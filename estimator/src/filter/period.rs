@@ -30,8 +30,7 @@
 //! times) times the number of runs, over `(sum d)^2`, with a relative
 //! floor [`STD_FLOOR`]. A period whose `r` strays more than [`GATE`] from
 //! `k` (a missed or spurious crossing, a tracker's glitch) is left out
-//! and ends the run, as do a step without a measurement and a move of
-//! the offset.
+//! and ends the run, as does a step without a measurement.
 
 /// The smallest amplitude read, rad (as the decay's: below it a
 /// tracker's noise makes half swings of its own).
@@ -44,9 +43,6 @@ pub(crate) const HYSTERESIS: f32 = 0.3;
 pub(crate) const MAX_LEAN: f32 = 0.5;
 /// The half swings a middle's smoothing remembers (each direction's).
 pub(crate) const LEAN_MEMORY: f32 = 8.0;
-/// The largest move of the subtracted offset, rad, that leaves the run
-/// going (a larger one moves the next crossing).
-pub(crate) const OFFSET_MOVE: f32 = 2e-3;
 /// Periods read before a period is given.
 pub(crate) const MIN_PERIODS: u16 = 2;
 /// The largest relative departure of a period's `r` from `k` (from
@@ -233,17 +229,20 @@ impl Period {
     /// A step without a measurement: the run starts again.
     pub(crate) fn gap(&mut self) {
         self.now = self.now.saturating_add(1);
-        self.restart();
-    }
-
-    /// The run starts again (a moved offset moves the next crossing).
-    pub(crate) fn restart(&mut self) {
         self.lean = [None; 2];
         self.last = f32::NAN;
         self.pending = f32::NAN;
         self.crossed = f32::NAN;
         self.middle = f32::NAN;
         self.end_run();
+    }
+
+    /// The subtracted offset moved by `by` (between half swings): the
+    /// middles so far lie `by` nearer zero in the angle fed now.
+    pub(crate) fn shift(&mut self, by: f32) {
+        for l in self.lean.iter_mut().flatten() {
+            *l -= by;
+        }
     }
 
     /// The run of half swings ends.
