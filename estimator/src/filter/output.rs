@@ -138,6 +138,17 @@ impl ParamRead {
     };
 }
 
+/// Whether the period's length (with its standard deviation) confirms the
+/// model's (read inside its calibrated range): [`trust::PERIOD_SHARP`]
+/// and [`trust::PERIOD_AGREES`].
+fn confirms(model: &ParamRead, (length, std): (f32, f32), calibrated: bool) -> bool {
+    let apart = model.value - length;
+    let spread = model.std * model.std + std * std;
+    calibrated
+        && std <= trust::PERIOD_SHARP * length
+        && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * spread
+}
+
 impl Estimator<'_> {
     /// The step's report: the estimate (or the held one), its calibrated
     /// standard deviations and the verdict.
@@ -171,7 +182,7 @@ impl Estimator<'_> {
             .mean()
             .and_then(|m| trust::consistency_statistic(m, length, swing, calib.nis_law));
         let [lo, hi] = calib.range;
-        let checks = Checks {
+        let mut checks = Checks {
             corrections: self.spread.n,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
                 <= blob.body.filter.sigma_threshold,
@@ -193,7 +204,20 @@ impl Estimator<'_> {
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
             source_ok: self.source_ok(length, calib.min_samples_per_period),
+            period_confirms: false,
         };
+        // Only where a check of the model's fit fails is the period asked.
+        let fits = checks.settled
+            && checks.in_envelope
+            && checks.swing_ok
+            && checks.even
+            && checks.consistent;
+        if !fits {
+            checks.period_confirms = read
+                .first()
+                .zip(period)
+                .is_some_and(|(model, period)| confirms(model, period, q0 >= lo && q0 <= hi));
+        }
         StepOutput {
             t: self.t,
             params,
