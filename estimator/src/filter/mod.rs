@@ -453,12 +453,7 @@ impl<'m> Estimator<'m> {
                 // A moved offset moves the half swings' middles with it.
                 self.period.shift(self.centre.applied() - (theta - x));
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
-                if !out.held {
-                    let period;
-                    (out.params, out.param_std, period) = self.fused(&out);
-                    (out.period_length, out.period_length_std) =
-                        (period.map(|p| p.0), period.map(|p| p.1));
-                }
+
             }
             if !was && self.centre.subtracting() {
                 self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);

@@ -111,8 +111,9 @@ pub struct StepOutput {
     /// The swing, rad, `q_factor` is at (the recent half swings' mean).
     pub q_swing: Option<f32>,
     /// The length the swing's period gives, at the declared gravity, m
-    /// (`None` before four half swings of at least 0.03 rad, or for a
-    /// blob whose first parameter is not a length): joined with the
+    /// (`None` before two periods of half swings of at least 0.03 rad, or
+    /// for a blob whose first parameter is not a length; a turning point
+    /// found at this step counts from the next): joined with the
     /// filter's in `params[0]`, each weighted by its inverse variance.
     pub period_length: Option<f32>,
     /// Its standard deviation, m.
@@ -166,7 +167,6 @@ impl Estimator<'_> {
             held.unwrap_or((*tail(&self.mean), self.param_std, self.period.omega_squared()));
         let specs = &blob.body.params;
         let read = self.read_params(&coordinate, &coordinate_std);
-        let (params, param_std, period) = self.with_period(&read, &coordinate, w0_squared);
         let (offset, offset_std) = self.centre.offset();
         let (q_factor, q_factor_std, q_swing) = self.decay.q_factor();
         let sigma = self.spread.sigma();
@@ -182,6 +182,15 @@ impl Estimator<'_> {
             .mean()
             .and_then(|m| trust::consistency_statistic(m, length, swing, calib.nis_law));
         let [lo, hi] = calib.range;
+        let in_range = q0 >= lo && q0 <= hi;
+        let in_envelope = self.worst_off <= calib.envelope_max_off;
+        // These two move both ways and are calibrated from the WINDOW-th
+        // update on: before it they pass.
+        let consistent = !full_window || consistency.is_none_or(|c| c <= calib.max_nis);
+        // The model's deviation holds where it was calibrated: in its
+        // range, inside its envelope, consistent with the measurements.
+        let (params, param_std, period) =
+            self.with_period(&read, in_range && in_envelope && consistent, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
@@ -190,11 +199,9 @@ impl Estimator<'_> {
                 .iter()
                 .zip(&params)
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
-            in_range: q0 >= lo && q0 <= hi,
-            in_envelope: self.worst_off <= calib.envelope_max_off,
-            // These two move both ways and are calibrated from the
-            // WINDOW-th update on: before it they pass.
-            consistent: !full_window || consistency.is_none_or(|c| c <= calib.max_nis),
+            in_range,
+            in_envelope,
+            consistent,
             rate_ok: !full_window
                 || self
                     .kinematics
@@ -216,7 +223,7 @@ impl Estimator<'_> {
             checks.period_confirms = read
                 .first()
                 .zip(period)
-                .is_some_and(|(model, period)| confirms(model, period, q0 >= lo && q0 <= hi));
+                .is_some_and(|(model, period)| confirms(model, period, in_range));
         }
         StepOutput {
             t: self.t,
@@ -266,15 +273,16 @@ impl Estimator<'_> {
     }
 
     /// The parameters and standard deviations reported from the filter's
-    /// `read` at the coordinates `q`, the length joined with the period's
-    /// (`w0_squared`, `w0^2` and its relative standard deviation) where
-    /// there is one, each weighted by its inverse variance, and the
-    /// period's length with its standard deviation. Outside the range the
-    /// filter's deviations are calibrated on, the period's alone.
+    /// `read`, the length joined with the period's (`w0_squared`, `w0^2`
+    /// and its relative standard deviation) where there is one, each
+    /// weighted by its inverse variance, and the period's length with its
+    /// standard deviation. Where the filter's deviations are not
+    /// `calibrated` (outside the range, or a check of the model's fit
+    /// failed), the period's alone.
     fn with_period(
         &self,
         read: &[ParamRead; PARAM_DIM],
-        q: &[f32; PARAM_DIM],
+        calibrated: bool,
         w0_squared: Option<(f32, f32)>,
     ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
         let mut params = read.map(|r| r.value);
@@ -292,8 +300,6 @@ impl Estimator<'_> {
             });
         if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
         {
-            let [lo, hi] = body.trust.range;
-            let calibrated = q.first().is_some_and(|q| *q >= lo && *q <= hi);
             let vk = if calibrated { *s * *s } else { f32::INFINITY };
             let vp = sp * sp;
             if !vk.is_finite() {
@@ -304,17 +310,6 @@ impl Estimator<'_> {
             }
         }
         (params, param_std, period)
-    }
-
-    /// The step's parameters, standard deviations and period length after
-    /// a turning point moved the period (`out` the step's report before,
-    /// not held).
-    pub(super) fn fused(
-        &self,
-        out: &StepOutput,
-    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
-        let read = self.read_params(&out.coordinate, &out.coordinate_std);
-        self.with_period(&read, &out.coordinate, self.period.omega_squared())
     }
 
     /// Whether the declared source gives at least `min_samples` samples a
