@@ -188,9 +188,8 @@ impl Estimator<'_> {
         // update on: before it they pass.
         let consistent = !full_window || consistency.is_none_or(|c| c <= calib.max_nis);
         // The model's deviation holds where it was calibrated: in its
-        // range, inside its envelope, consistent with the measurements.
-        let (params, param_std, period) =
-            self.with_period(&read, in_range && in_envelope && consistent, w0_squared);
+        // range (at the coordinate reported, held or not).
+        let (params, param_std, period) = self.with_period(&read, in_range, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
@@ -277,8 +276,7 @@ impl Estimator<'_> {
     /// and its relative standard deviation) where there is one, each
     /// weighted by its inverse variance, and the period's length with its
     /// standard deviation. Where the filter's deviations are not
-    /// `calibrated` (outside the range, or a check of the model's fit
-    /// failed), the period's alone.
+    /// `calibrated` (outside the range), the period's alone.
     fn with_period(
         &self,
         read: &[ParamRead; PARAM_DIM],
