@@ -64,6 +64,16 @@ fn the_rig_blob_reads_real_rigs_draws() {
     assert!(share(c.end_within_2, c.n) >= 0.92, "{c:?}");
     assert!(share(c.first_within_5, c.n) >= 0.72, "{c:?}");
     assert!(share(c.wrong_trusted, c.n) <= 0.01, "{c:?}");
+    // With a sharp period that agrees waiving the checks of the model's
+    // fit, 177 of the 193 right are trusted (without it, 174).
     let [trusted, right] = c.trusted_of_right;
-    assert!(share(trusted, right) >= 0.88, "{c:?}");
+    assert!(share(trusted, right) >= 0.91, "{c:?}");
+    // Joined with the swing's period, the median error at the end is
+    // within 1.5 times the physics peer's (0.11% against 0.085%; the
+    // model alone read 0.46%).
+    assert!(
+        c.median_end_error <= 1.5 * f.peer.median_end_error,
+        "{c:?} against the peer's {:?}",
+        f.peer
+    );
 }

@@ -189,7 +189,7 @@ impl Estimator<'_> {
         let consistent = !full_window || consistency.is_none_or(|c| c <= calib.max_nis);
         // The model's deviation holds where it was calibrated: in its
         // range (at the coordinate reported, held or not).
-        let (params, param_std, period) = self.with_period(&read, in_range, w0_squared);
+        let (params, param_std, period, disagree) = self.with_period(&read, in_range, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
@@ -200,7 +200,9 @@ impl Estimator<'_> {
                 .all(|(spec, p)| !spec.declared || spec.physical(*p)),
             in_range,
             in_envelope,
-            consistent,
+            // The period's length far from the model's is a measurement
+            // the model did not predict.
+            consistent: consistent && !disagree,
             rate_ok: !full_window
                 || self
                     .kinematics
@@ -276,14 +278,18 @@ impl Estimator<'_> {
     /// and its relative standard deviation) where there is one, each
     /// weighted by its inverse variance, and the period's length with its
     /// standard deviation. Where the filter's deviations are not
-    /// `calibrated` (outside the range), the period's alone.
+    /// `calibrated` (outside the range), or the two lie further apart
+    /// than [`trust::PERIOD_AGREES`] deviations, the period's alone; the
+    /// last value says they disagree by more than
+    /// [`trust::PERIOD_DISAGREES`] too.
     fn with_period(
         &self,
         read: &[ParamRead; PARAM_DIM],
         calibrated: bool,
         w0_squared: Option<(f32, f32)>,
-    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>) {
+    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, bool) {
         let mut params = read.map(|r| r.value);
+        let mut disagree = false;
         let mut param_std = read.map(|r| r.std);
         let body = &self.model.blob().body;
         let is_length = body
@@ -300,14 +306,22 @@ impl Estimator<'_> {
         {
             let vk = if calibrated { *s * *s } else { f32::INFINITY };
             let vp = sp * sp;
-            if !vk.is_finite() {
+            // Two readings further apart than their deviations allow: one
+            // is wrong, and the model's deviation is the one calibrated on
+            // the training's draws alone.
+            let apart = *l - lp;
+            let agree = apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp);
+            disagree = vk.is_finite()
+                && !agree
+                && libm::fabsf(apart) > trust::PERIOD_DISAGREES * lp;
+            if !(vk.is_finite() && agree) {
                 (*l, *s) = (lp, sp);
             } else if vk + vp > 0.0 {
                 *l += vk / (vk + vp) * (lp - *l);
                 *s = libm::sqrtf(vk * vp / (vk + vp));
             }
         }
-        (params, param_std, period)
+        (params, param_std, period, disagree)
     }
 
     /// Whether the declared source gives at least `min_samples` samples a
