@@ -120,6 +120,11 @@ pub struct StepOutput {
     pub period_length_std: Option<f32>,
 }
 
+/// The parameters and their standard deviations as reported, the
+/// period's length with its standard deviation, and whether the model's
+/// length disagrees with it ([`Estimator::with_period`]).
+type Reported = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, bool);
+
 /// One parameter as reported.
 #[derive(Debug, Clone, Copy)]
 struct ParamRead {
@@ -287,7 +292,7 @@ impl Estimator<'_> {
         read: &[ParamRead; PARAM_DIM],
         calibrated: bool,
         w0_squared: Option<(f32, f32)>,
-    ) -> ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, bool) {
+    ) -> Reported {
         let mut params = read.map(|r| r.value);
         let mut disagree = false;
         let mut param_std = read.map(|r| r.std);
