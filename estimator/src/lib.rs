@@ -5,7 +5,9 @@
 //! model: an encoder maps each measurement `(theta, theta_dot)` to a
 //! latent `y`, and the physical parameters `p` (the length, and one effect
 //! such as damping) ride along, so that a Kalman filter over `[y; p]`
-//! estimates them as the measurements come. Each step returns the
+//! estimates them as the measurements come. Beside it, the swing's own
+//! period gives a length ([`StepOutput::period_length`]); the length
+//! reported joins the two. Each step returns the
 //! estimate, its standard deviation and a [`Trust`] verdict with its
 //! [`Reason`]s. `no_std`, no allocator, fixed sizes, no panics: the blob
 //! is read where it lies ([`blob::Aligned`]) and the same code runs on the

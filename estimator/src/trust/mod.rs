@@ -35,11 +35,11 @@ pub(crate) use swing::SwingWindow;
 /// lengths within 5% at the end, 678 trusted without it; at 0.002, 0.003
 /// and 0.005 (with [`PERIOD_AGREES`] 3), 687, 689 and 699, none more wrong
 /// and trusted.
-pub const PERIOD_SHARP: f32 = 0.005;
+pub(crate) const PERIOD_SHARP: f32 = 0.005;
 /// How many standard deviations (the model's and the period's together)
 /// the model's length may lie from the period's to be confirmed by it: at
 /// 2, 695 of the 767 above.
-pub const PERIOD_AGREES: f32 = 3.0;
+pub(crate) const PERIOD_AGREES: f32 = 3.0;
 
 /// The share of the period's length by which the model's, further than
 /// [`PERIOD_AGREES`] deviations from it, fails the consistency check
@@ -48,7 +48,7 @@ pub const PERIOD_AGREES: f32 = 3.0;
 /// of 0.3 to 1 1/s, `rig_off_distribution`), 1 wrong and trusted in 120
 /// rather than 2; on lab-check seeds 12, 14, 15 and 16, the right trusted
 /// as without the check.
-pub const PERIOD_DISAGREES: f32 = 0.02;
+pub(crate) const PERIOD_DISAGREES: f32 = 0.02;
 
 /// Why an estimate is not trusted: one check of the verdict each.
 ///
@@ -72,9 +72,10 @@ pub const PERIOD_DISAGREES: f32 = 0.02;
 /// The checks of how well the model fits the swing (`Unsettled`,
 /// `OutsideEnvelope`, `SmallSwing`, `UnevenSwing`, `Inconsistent`) are
 /// waived where the swing's period confirms the length: its length's
-/// relative standard deviation at most [`PERIOD_SHARP`], and the model's
-/// own length, inside its calibrated range, within [`PERIOD_AGREES`]
-/// standard deviations of it (both together). The rest hold whatever
+/// relative standard deviation at most 0.5%, and the model's own length,
+/// inside its calibrated range, within 3 standard deviations of it (both
+/// together). Where the two lie further apart and more than 2%, the
+/// period's length is reported and the consistency check fails. The rest hold whatever
 /// the period says: a wrong interval or unit, a coarse source, a length
 /// outside the range, gravity.
 ///
