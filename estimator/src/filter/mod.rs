@@ -453,7 +453,6 @@ impl<'m> Estimator<'m> {
                 // A moved offset moves the half swings' middles with it.
                 self.period.shift(self.centre.applied() - (theta - x));
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
-
             }
             if !was && self.centre.subtracting() {
                 self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);

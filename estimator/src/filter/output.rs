@@ -121,9 +121,23 @@ pub struct StepOutput {
 }
 
 /// The parameters and their standard deviations as reported, the
-/// period's length with its standard deviation, and whether the model's
-/// length disagrees with it ([`Estimator::with_period`]).
-type Reported = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, bool);
+/// period's length with its standard deviation, and how the model's
+/// length stands to it ([`Estimator::with_period`]).
+type Reported = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, Agreement);
+
+/// How the model's length stands to the period's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Agreement {
+    /// No period, or the model's outside its calibrated range.
+    Unknown,
+    /// Within [`trust::PERIOD_AGREES`] standard deviations: joined.
+    Agrees,
+    /// Further apart: the period's is reported.
+    Apart,
+    /// Further apart and by more than [`trust::PERIOD_DISAGREES`] too: the
+    /// consistency check fails.
+    Disagrees,
+}
 
 /// One parameter as reported.
 #[derive(Debug, Clone, Copy)]
@@ -142,17 +156,6 @@ impl ParamRead {
         value: f32::NAN,
         std: f32::NAN,
     };
-}
-
-/// Whether the period's length (with its standard deviation) confirms the
-/// model's (read inside its calibrated range): [`trust::PERIOD_SHARP`]
-/// and [`trust::PERIOD_AGREES`].
-fn confirms(model: &ParamRead, (length, std): (f32, f32), calibrated: bool) -> bool {
-    let apart = model.value - length;
-    let spread = model.std * model.std + std * std;
-    calibrated
-        && std <= trust::PERIOD_SHARP * length
-        && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * spread
 }
 
 impl Estimator<'_> {
@@ -194,7 +197,7 @@ impl Estimator<'_> {
         let consistent = !full_window || consistency.is_none_or(|c| c <= calib.max_nis);
         // The model's deviation holds where it was calibrated: in its
         // range (at the coordinate reported, held or not).
-        let (params, param_std, period, disagree) = self.with_period(&read, in_range, w0_squared);
+        let (params, param_std, period, agreement) = self.with_period(&read, in_range, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
@@ -207,7 +210,7 @@ impl Estimator<'_> {
             in_envelope,
             // The period's length far from the model's is a measurement
             // the model did not predict.
-            consistent: consistent && !disagree,
+            consistent: consistent && agreement != Agreement::Disagrees,
             rate_ok: !full_window
                 || self
                     .kinematics
@@ -219,18 +222,9 @@ impl Estimator<'_> {
             source_ok: self.source_ok(length, calib.min_samples_per_period),
             period_confirms: false,
         };
-        // Only where a check of the model's fit fails is the period asked.
-        let fits = checks.settled
-            && checks.in_envelope
-            && checks.swing_ok
-            && checks.even
-            && checks.consistent;
-        if !fits {
-            checks.period_confirms = read
-                .first()
-                .zip(period)
-                .is_some_and(|(model, period)| confirms(model, period, in_range));
-        }
+        // The period confirms the length where it is sharp and agrees.
+        checks.period_confirms = agreement == Agreement::Agrees
+            && period.is_some_and(|(length, std)| std <= trust::PERIOD_SHARP * length);
         StepOutput {
             t: self.t,
             params,
@@ -284,9 +278,8 @@ impl Estimator<'_> {
     /// weighted by its inverse variance, and the period's length with its
     /// standard deviation. Where the filter's deviations are not
     /// `calibrated` (outside the range), or the two lie further apart
-    /// than [`trust::PERIOD_AGREES`] deviations, the period's alone; the
-    /// last value says they disagree by more than
-    /// [`trust::PERIOD_DISAGREES`] too.
+    /// than [`trust::PERIOD_AGREES`] deviations, the period's alone
+    /// ([`Agreement`]).
     fn with_period(
         &self,
         read: &[ParamRead; PARAM_DIM],
@@ -294,7 +287,7 @@ impl Estimator<'_> {
         w0_squared: Option<(f32, f32)>,
     ) -> Reported {
         let mut params = read.map(|r| r.value);
-        let mut disagree = false;
+        let mut agreement = Agreement::Unknown;
         let mut param_std = read.map(|r| r.std);
         let body = &self.model.blob().body;
         let is_length = body
@@ -316,17 +309,22 @@ impl Estimator<'_> {
             // the training's draws alone.
             let apart = *l - lp;
             let agree = apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp);
-            disagree = vk.is_finite()
-                && !agree
-                && libm::fabsf(apart) > trust::PERIOD_DISAGREES * lp;
-            if !(vk.is_finite() && agree) {
+            agreement = match (vk.is_finite(), agree) {
+                (false, _) => Agreement::Unknown,
+                (true, true) => Agreement::Agrees,
+                (true, false) if libm::fabsf(apart) > trust::PERIOD_DISAGREES * lp => {
+                    Agreement::Disagrees
+                }
+                (true, false) => Agreement::Apart,
+            };
+            if agreement != Agreement::Agrees {
                 (*l, *s) = (lp, sp);
             } else if vk + vp > 0.0 {
                 *l += vk / (vk + vp) * (lp - *l);
                 *s = libm::sqrtf(vk * vp / (vk + vp));
             }
         }
-        (params, param_std, period, disagree)
+        (params, param_std, period, agreement)
     }
 
     /// Whether the declared source gives at least `min_samples` samples a
