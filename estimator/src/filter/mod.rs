@@ -177,6 +177,9 @@ pub struct Estimator<'m> {
     /// Updates before which the corrections and innovations do not count
     /// (a burn-in again after the parameters were reopened).
     burn_until: u32,
+    /// Updates before which a verdict is not given: a window after the
+    /// parameters were started afresh (0: never).
+    afresh_until: u32,
 }
 
 impl<'m> Estimator<'m> {
@@ -211,6 +214,7 @@ impl<'m> Estimator<'m> {
             innovation: None,
             source_dt: 0.0,
             burn_until: 0,
+            afresh_until: 0,
             g_known: !model
                 .blob()
                 .body

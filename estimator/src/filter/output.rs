@@ -200,6 +200,7 @@ impl Estimator<'_> {
         let (params, param_std, period, agreement) = self.with_period(&read, in_range, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
+            afresh: self.t < self.afresh_until,
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
                 <= blob.body.filter.sigma_threshold,
             physical: specs

@@ -131,6 +131,9 @@ impl Estimator<'_> {
         // The verdict starts again: a burn-in, then the corrections.
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);
         self.burn_until = self.t.saturating_add(burn_in);
+        if afresh {
+            self.afresh_until = self.t.saturating_add(crate::WINDOW as u32);
+        }
         self.spread = Spread::default();
         self.consistency = Consistency::default();
         // What the states and the swings showed the forgotten estimate,

@@ -192,7 +192,9 @@ pub type Reasons = Vec<Reason, REASONS>;
 /// ```
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Trust {
-    /// Fewer than two corrections after the burn-in: no verdict yet.
+    /// Fewer than two corrections after the burn-in, or the parameters
+    /// started afresh less than [`WINDOW`](crate::WINDOW) updates ago: no
+    /// verdict yet.
     Pending,
     /// Every check passed.
     Trusted,
@@ -234,6 +236,9 @@ impl Trust {
 pub(crate) struct Checks {
     /// Corrections after the burn-in so far.
     pub corrections: u32,
+    /// The parameters started afresh less than a window ago (an offset
+    /// found late): the estimate is still the few measurements since.
+    pub afresh: bool,
     /// Sigma at or below the threshold.
     pub settled: bool,
     /// Every declared parameter physical.
@@ -268,7 +273,7 @@ pub(crate) struct Checks {
 impl Checks {
     /// The verdict.
     pub fn verdict(&self) -> Trust {
-        if self.corrections < 2 {
+        if self.corrections < 2 || self.afresh {
             return Trust::Pending;
         }
         let fits = self.period_confirms;
@@ -309,6 +314,7 @@ mod tests {
     fn verdict_lists_every_failed_check() {
         let all_ok = Checks {
             corrections: 2,
+            afresh: false,
             settled: true,
             physical: true,
             in_range: true,
@@ -330,6 +336,11 @@ mod tests {
             .verdict(),
             Trust::Pending
         );
+        let afresh = Checks {
+            afresh: true,
+            ..all_ok
+        };
+        assert_eq!(afresh.verdict(), Trust::Pending);
         let bad = Checks {
             settled: false,
             in_envelope: false,
@@ -341,6 +352,7 @@ mod tests {
         );
         let none = Checks {
             corrections: 9,
+            afresh: false,
             settled: false,
             physical: false,
             in_range: false,
