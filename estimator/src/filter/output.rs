@@ -200,7 +200,12 @@ impl Estimator<'_> {
         let (params, param_std, period, agreement) = self.with_period(&read, in_range, w0_squared);
         let mut checks = Checks {
             corrections: self.spread.n,
-            afresh: self.t < self.afresh_until,
+            afresh: self.afresh_until > 0
+                && (self.t < self.afresh_until
+                    || match (params.first(), param_std.first()) {
+                        (Some(p), Some(std)) => *std > trust::AFRESH_REL_STD * libm::fabsf(*p),
+                        _ => false,
+                    }),
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
                 <= blob.body.filter.sigma_threshold,
             physical: specs
