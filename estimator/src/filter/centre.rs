@@ -25,10 +25,9 @@
 //! first measurement for the chain's first turn, moved out by what a
 //! harmonic swing at that rate lies short of its turn: every triple and
 //! pair comes a half period sooner. On lab-check seeds 13 and 17 to 21
-//! (1200 recordings, offsets to 0.1 rad, never tuned on), 929 lengths
+//! (1200 recordings, offsets to 0.1 rad, never tuned on), 927 lengths
 //! are within 5% after 64 measurements rather than 898, with 2 wrong and
-//! trusted rather than 3; one that starts mid-swing waits for its
-//! turns.
+//! trusted either way; one that starts mid-swing waits for its turns.
 //!
 //! The filter is fed `theta - c`, `c` the mean so far, from the first
 //! triple on where it is at least twice [`OFFSET_FLOOR`] (and twice the
@@ -75,8 +74,8 @@ const PAIR_DAMPED_SHARE: f32 = 0.5;
 /// measurement's may have for it to be a turn (a release from rest): at
 /// 0.35 its angle lies 6% of the swing short of the turn, moved out by
 /// the harmonic swing's `1 - sqrt(1 - share^2)`. Within 5% after 64
-/// measurements on lab-check seeds 12, 14, 15 and 16: 0.2, 623 of 800;
-/// 0.35, 623 (2 wrong and trusted); 0.5, 627 (3); none, 610.
+/// measurements on lab-check seeds 12, 14, 15 and 16 (800): 0.2, 616
+/// (2 wrong and trusted); 0.35, 614 (1); 0.5, 614 (1); none, 610 (3).
 const REST_SHARE: f32 = 0.35;
 /// The smallest swing (half the range between turning points, rad) a
 /// triple is read from: below it the tracking noise dominates.
