@@ -445,16 +445,23 @@ mod tests {
     /// point's side, is not taken for an offset up to the first triple.
     #[test]
     fn a_damped_first_pair_is_not_an_offset() {
-        let (a, per_period) = (0.3f32, 25.0f32);
-        let (w, k) = (core::f32::consts::TAU, -2.0 * libm::logf(0.6));
+        decaying_swing_subtracts_nothing(0.3, 0.6, 26);
+    }
+
+    /// A swing without offset released at `a` from rest, keeping `kept` of
+    /// its amplitude each half swing, sampled 25 times a period: nothing
+    /// is subtracted over its first `steps` measurements.
+    fn decaying_swing_subtracts_nothing(a: f32, kept: f32, steps: u32) -> Centre {
+        let (w, k) = (core::f32::consts::TAU, -2.0 * libm::logf(kept));
         let mut centre = Centre::default();
-        for i in 0..26u32 {
-            let t = i as f32 / per_period;
+        for i in 0..steps {
+            let t = i as f32 / 25.0;
             let amp = a * libm::expf(-k * t);
             let (c, s) = (libm::cosf(w * t), libm::sinf(w * t));
             centre.push(amp * c, -amp * (w * s + k * c));
             assert!(!centre.subtracting(), "{i}");
         }
+        centre
     }
 
     /// A swing without offset released at 1.1 rad that loses 20% of its
@@ -464,16 +471,7 @@ mod tests {
     /// it, which lean to alternate sides.
     #[test]
     fn a_viscous_first_triple_is_not_an_offset() {
-        let (a, per_period) = (1.1f32, 25.0f32);
-        let (w, k) = (core::f32::consts::TAU, -2.0 * libm::logf(0.8));
-        let mut centre = Centre::default();
-        for i in 0..75u32 {
-            let t = i as f32 / per_period;
-            let amp = a * libm::expf(-k * t);
-            let (c, s) = (libm::cosf(w * t), libm::sinf(w * t));
-            centre.push(amp * c, -amp * (w * s + k * c));
-            assert!(!centre.subtracting(), "{i}");
-        }
+        let centre = decaying_swing_subtracts_nothing(1.1, 0.8, 75);
         assert!(centre.offset().0.is_some());
     }
 
