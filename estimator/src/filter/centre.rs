@@ -113,6 +113,9 @@ pub(crate) struct Centre {
     /// The angle and `|rate|` the half swing started with, where it
     /// started the chain (a release from rest may be its first turn).
     start: Option<(f32, f32)>,
+    /// The amplitude of the half swing the last turning point ended, where
+    /// it began at a release (not sized for the decay, but timed).
+    released: Option<f32>,
 }
 
 impl Centre {
@@ -171,10 +174,13 @@ impl Centre {
                 }
             }
             let [_, before] = self.turns;
-            // A half swing from a release is not timed nor sized: where it
-            // began is known to a sample, not refined.
+            // A half swing from a release is not sized for the decay: where
+            // it began is known to a sample, not refined. Its crossing is
+            // timed all the same (`released_swing`).
             let timed = self.n_turns >= 1 && !released;
-            half = Some(timed.then(|| 0.5 * libm::fabsf(point - before)));
+            let amplitude = 0.5 * libm::fabsf(point - before);
+            half = Some(timed.then_some(amplitude));
+            self.released = (released && self.n_turns >= 1).then_some(amplitude);
             self.turn(point);
             if at_once {
                 self.last_len = 0;
@@ -313,6 +319,12 @@ impl Centre {
     fn first_significant(&self, c: f32, lean: f32) -> bool {
         let c = libm::fabsf(c);
         c >= 2.0 * OFFSET_FLOOR && c >= 2.0 * lean
+    }
+
+    /// The amplitude of the half swing the last turning point ended, where
+    /// it began at a release: timed for the period, not sized.
+    pub(crate) fn released_swing(&self) -> Option<f32> {
+        self.released
     }
 
     /// Whether an offset is being subtracted.
@@ -494,6 +506,35 @@ mod tests {
         let offset = centre.offset().0.unwrap();
         assert!(offset.abs() < 2e-3, "{offset}");
         assert!(!centre.subtracting());
+    }
+
+    /// The half swing from a release is given for timing (its amplitude,
+    /// within 2% of the swing's) at the turning point that ends it, and
+    /// at no other; one from a start mid-swing never.
+    #[test]
+    fn only_a_release_half_swing_is_given_for_timing() {
+        let (a, per_period) = (0.3f32, 25.0f32);
+        let w = core::f32::consts::TAU;
+        for (phase, released) in [(0.0f32, true), (libm::asinf(0.7), false)] {
+            let mut centre = Centre::default();
+            let mut given = [None; 3];
+            let mut turns = 0;
+            for k in 0..70u32 {
+                let x = w * k as f32 / per_period + phase;
+                let rate = if k == 0 && released { -0.01 } else { -a * w * libm::sinf(x) };
+                if centre.push(a * libm::cosf(x), rate).is_some() {
+                    if let Some(g) = given.get_mut(turns) {
+                        *g = centre.released_swing();
+                    }
+                    turns += 1;
+                }
+            }
+            assert!(turns >= 3, "{turns}");
+            let [first, second, third] = given;
+            assert_eq!(first.is_some(), released, "{phase}: {first:?}");
+            assert!(first.is_none_or(|f| (f - a).abs() < 0.02 * a), "{first:?}");
+            assert_eq!((second, third), (None, None), "{phase}");
+        }
     }
 
     /// A recording that starts mid-swing (its first rate 70% of the

@@ -180,6 +180,10 @@ pub struct Estimator<'m> {
     /// Updates before which a verdict is not given: a window after the
     /// parameters were started afresh (0: never).
     afresh_until: u32,
+    /// The parameters were reopened and the period has not yet given its
+    /// own reading: each half swing timed is taken as a measurement of the
+    /// length ([`Estimator::take_half_period`]).
+    half_pending: bool,
 }
 
 impl<'m> Estimator<'m> {
@@ -215,6 +219,7 @@ impl<'m> Estimator<'m> {
             source_dt: 0.0,
             burn_until: 0,
             afresh_until: 0,
+            half_pending: false,
             g_known: !model
                 .blob()
                 .body
@@ -453,13 +458,18 @@ impl<'m> Estimator<'m> {
                 self.decay.turn(half);
                 // The source's own interval where coarser than the steps.
                 let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
-                self.period.turn(half, self.centre.middle() - (theta - x), dt, source_dt);
+                // A half swing from a release is timed, not sized.
+                let timed = half.or(self.centre.released_swing());
+                self.period.turn(timed, self.centre.middle() - (theta - x), dt, source_dt);
                 // A moved offset moves the half swings' middles with it.
                 self.period.shift(self.centre.applied() - (theta - x));
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
-            }
-            if !was && self.centre.subtracting() {
-                self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
+                if !was && self.centre.subtracting() {
+                    self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
+                }
+                if self.half_pending {
+                    self.take_half_period();
+                }
             }
         }
         Ok(out)
@@ -517,6 +527,7 @@ impl<'m> Estimator<'m> {
             self.held = None;
             self.outlier = false;
             self.innovation = None;
+            self.half_pending = false;
             self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
         }

@@ -291,6 +291,15 @@ impl Period {
         self.read = self.fit();
     }
 
+    /// `w0^2` (1/s^2) from the last half swing alone, and its amplitude
+    /// (rad): where the turning point just found ended a half swing timed
+    /// from the one before.
+    pub(crate) fn last_half(&self) -> Option<(f32, f32)> {
+        let (d, c) = self.linked?;
+        let w = core::f32::consts::PI * c / d;
+        Some((w * w, self.amplitude?))
+    }
+
     /// `w0^2` (1/s^2) and its relative standard deviation, from
     /// [`MIN_PERIODS`] periods on.
     pub(crate) fn omega_squared(&self) -> Option<(f32, f32)> {
