@@ -8,6 +8,10 @@
 //!   its own frames (or pending), not after; read within 2% at the end,
 //!   trusted.
 //! - 0.3 m at 2 Hz (2.2 frames a period, below it): flagged to the end.
+//! - 0.14 m at 6 Hz (4.5 frames a period): the rate the import derives
+//!   by a central difference over two frames is 0.71 of the swing's, the
+//!   angle's straight lines 0.92; the rate check reads that ratio, 1.3,
+//!   as a coarse source's, not as another interval or unit.
 
 use estimator::{Reason, StepOutput, Trust};
 use host_tests::read_with_rig_blob;
@@ -67,4 +71,19 @@ fn a_5_hz_source_is_flagged_until_a_window_of_its_own_frames_then_read() {
 fn a_2_hz_source_on_a_short_string_is_flagged_to_the_end() {
     let (outs, _) = read(0.3, 2.0);
     assert!(outs.iter().skip(64).all(coarse));
+}
+
+#[test]
+fn a_coarse_sources_derived_rate_is_not_another_unit() {
+    let (outs, _) = read(0.14, 6.0);
+    let end = outs.last().unwrap();
+    let ratio = end.rate_ratio.unwrap();
+    assert!((1.2..1.45).contains(&ratio), "{ratio}");
+    assert!(
+        outs.iter()
+            .skip(200)
+            .all(|o| !o.trust.reasons().contains(&Reason::RateMismatch)),
+        "{:?}",
+        end.trust
+    );
 }
