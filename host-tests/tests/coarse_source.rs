@@ -9,9 +9,11 @@
 //!   trusted.
 //! - 0.3 m at 2 Hz (2.2 frames a period, below it): flagged to the end.
 //! - 0.14 m at 6 Hz (4.5 frames a period): the rate the import derives
-//!   by a central difference over two frames is 0.71 of the swing's, the
-//!   angle's straight lines 0.92; the rate check reads that ratio, 1.3,
-//!   as a coarse source's, not as another interval or unit.
+//!   by a central difference over two frames, and the straight lines
+//!   between frames, put the angle's change at 1.4 times the rate's
+//!   (beyond the band of 1 the rate check is calibrated to, 0.32); the
+//!   check reads it as a coarse source's, not as another interval or
+//!   unit.
 
 use estimator::{Reason, StepOutput, Trust};
 use host_tests::read_with_rig_blob;
@@ -78,7 +80,7 @@ fn a_coarse_sources_derived_rate_is_not_another_unit() {
     let (outs, _) = read(0.14, 6.0);
     let end = outs.last().unwrap();
     let ratio = end.rate_ratio.unwrap();
-    assert!((1.2..1.45).contains(&ratio), "{ratio}");
+    assert!((1.33..1.5).contains(&ratio), "{ratio}");
     assert!(
         outs.iter()
             .skip(200)

@@ -7,7 +7,8 @@ use crate::trust::{self, Checks, Trust};
 use crate::PARAM_DIM;
 
 /// The largest `w0 dt_source` the rate check allows for
-/// ([`Estimator::coarse_rate_ok`]): 2.5 samples a period.
+/// ([`Estimator::coarse_rate_ok`]): 2.5 samples a period (the blob's
+/// calibration flags fewer than 4 as a coarse source).
 const COARSE_X: f32 = 2.5;
 
 /// What one step reports.
@@ -355,14 +356,16 @@ impl Estimator<'_> {
         period / self.source_dt >= min_samples && enough
     }
 
-    /// Whether the rate's ratio `r` to the angle's change is within
-    /// `max_mismatch` of the one a harmonic swing at the length `length`
-    /// gives, sampled at the declared source's interval where coarser than
-    /// the blob's, its rate derived there by a central difference (the
-    /// import's for an angle-only source), both interpolated in straight
-    /// lines: `sinc(x / 2) / sinc(x)`, `x = w0 dt_source`, at most `x` of
-    /// [`COARSE_X`] (below that a source is flagged coarse). At 5 Hz on a
-    /// 0.11 m string, 1.71; the lab-check's draws read 1.72.
+    /// Whether the rate's ratio `r` to the angle's change is a coarse
+    /// source's.
+    ///
+    /// A declared source coarser than the blob's interval whose rate was
+    /// derived at its frames by a central difference (the import's for an
+    /// angle-only source), both interpolated in straight lines, gives a
+    /// harmonic swing at the length `length` the ratio `3 / (2 + cos x)`,
+    /// `x = w0 dt_source` (a simulated 0.14 m string at 6 Hz: 1.40, the
+    /// formula 1.38; the lab-check's draws at 5 and 6 Hz read 1.3 to 1.7):
+    /// `r` within `max_mismatch` of it. `x` is capped at [`COARSE_X`].
     #[cold]
     #[inline(never)]
     fn coarse_rate_ok(&self, r: f32, length: f32, max_mismatch: f32) -> bool {
@@ -372,8 +375,8 @@ impl Estimator<'_> {
         }
         let w0 = libm::sqrtf(body.g / (length * body.rig.equivalent_fraction()));
         let x = (w0 * self.source_dt).min(COARSE_X);
-        let sinc = |u: f32| if u > 0.0 { libm::sinf(u) / u } else { 1.0 };
-        libm::fabsf(r * sinc(x) / sinc(0.5 * x) - 1.0) <= max_mismatch
+        let expected = 3.0 / (2.0 + libm::cosf(x));
+        libm::fabsf(r / expected - 1.0) <= max_mismatch
     }
 
     /// The parameter `spec` at the coordinate `q` with the filter's

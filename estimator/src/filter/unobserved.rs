@@ -20,12 +20,16 @@ const REOPEN: f32 = 8.0;
 /// Measurements in a row refused as outliers at most: the next is taken
 /// (a knock, not a tracker's glitch, moves every measurement after it).
 const MAX_OUTLIER_RUN: u8 = 3;
-/// A half swing's timing noise as an angle, rad (its crossings' noise over
-/// the swing gives its relative standard deviation), and a floor on that
+/// A half swing's crossings' noise as an angle, rad: over its amplitude,
+/// its duration's relative standard deviation
 /// ([`Estimator::take_half_period`]).
-const HALF_STD: f32 = 0.005;
-/// See [`HALF_STD`].
-const HALF_FLOOR: f32 = 0.01;
+const CROSSING_NOISE: f32 = 0.005;
+/// The least relative standard deviation of a half swing's duration.
+const HALF_REL_FLOOR: f32 = 0.01;
+/// The most deviations (the innovation's, on the reported scale) a half
+/// swing's length may lie from the filter's for it to be taken: a knock
+/// or a missed crossing is not.
+const HALF_GATE: f32 = 5.0;
 
 impl Estimator<'_> {
     /// Advances the filter one model step without a measurement (a sample
@@ -143,7 +147,7 @@ impl Estimator<'_> {
         if afresh {
             self.afresh_until = self.t.saturating_add(crate::WINDOW as u32);
         }
-        self.half_pending = true;
+        self.half_pending = self.period.omega_squared().is_none();
         self.spread = Spread::default();
         self.consistency = Consistency::default();
         // What the states and the swings showed the forgotten estimate,
@@ -155,20 +159,23 @@ impl Estimator<'_> {
         self.kinematics.gap();
     }
 
-    /// A half swing timed after the parameters were reopened, taken as a
-    /// measurement of the length (each until the period gives its own,
-    /// [`super::period`]): its `w0^2` read as the length at the blob's
-    /// gravity, with a relative standard deviation of twice
-    /// `sqrt((HALF_STD / a)^2 + HALF_FLOOR^2)` (`a` its amplitude: its
-    /// crossings' noise over the swing), over the blob's calibrated scale
-    /// (the filter's own deviations are the reported ones over it); a
-    /// scalar update of the length's coordinate. A filter started afresh
-    /// half a period to a period into the swing has a few dozen
-    /// measurements at 64; the half swing it missed is timed. Within 5%
-    /// after 64 on lab-check seeds 12, 14, 15 and 16 (800, offsets to 0.1
-    /// rad): 681 rather than 640 (the first half swing only, 676; `HALF_STD`
-    /// 0.0025, 676; 0.01, 668; `HALF_FLOOR` 0.02, 669), within 2% at the
-    /// end 757 rather than 755, 1 wrong and trusted either way.
+    /// The last half swing the period timed, as a measurement of the length.
+    ///
+    /// Taken after the parameters were reopened, each half swing until the
+    /// period gives its own reading ([`super::period`]): a filter started
+    /// afresh half a period to a period into the swing has a few dozen
+    /// measurements at 64, and the half swing it missed is timed. Its
+    /// `w0^2` reads as the length at the blob's gravity, with a relative
+    /// standard deviation of twice `sqrt((CROSSING_NOISE / a)^2 +
+    /// HALF_REL_FLOOR^2)` (`a` its amplitude), on the filter's own scale
+    /// (the reported deviations over the blob's calibrated scale); one
+    /// scalar update of the length's coordinate, refused beyond
+    /// [`HALF_GATE`] deviations. Within 5% after 64 on lab-check seeds 12,
+    /// 14, 15 and 16 (800, offsets to 0.1 rad): 681, 640 without (the
+    /// first half swing only, 676; `CROSSING_NOISE` 0.0025, 676; 0.01,
+    /// 668; `HALF_REL_FLOOR` 0.02, 669; a gate of 3, 677, of 5 or none,
+    /// 681); within 2% at the end 757, 755 without; 1 wrong and trusted
+    /// either way.
     #[cold]
     #[inline(never)]
     pub(super) fn take_half_period(&mut self) {
@@ -185,20 +192,23 @@ impl Estimator<'_> {
             return;
         }
         let q = spec.coordinate(length);
-        let rel = 2.0 * libm::sqrtf((HALF_STD / a) * (HALF_STD / a) + HALF_FLOOR * HALF_FLOOR);
+        let noise = CROSSING_NOISE / a;
+        let rel = 2.0 * libm::sqrtf(noise * noise + HALF_REL_FLOOR * HALF_REL_FLOOR);
         // On the filter's own scale: its deviations are the reported ones
         // over the blob's calibrated scale.
         let scale = body.trust.std_scale.first().copied().unwrap_or(1.0);
-        let sq = rel * length / (libm::fabsf(spec.slope(q)) * scale);
+        let sigma_q = rel * length / (libm::fabsf(spec.slope(q)) * scale);
         let Some(col) = self.p.get(LATENT_DIM).copied() else {
             return;
         };
         let (Some(pll), Some(ml)) = (col.get(LATENT_DIM), self.mean.get(LATENT_DIM)) else {
             return;
         };
-        let s = pll + sq * sq;
+        let s = pll + sigma_q * sigma_q;
         let nu = q - ml;
-        if !(s > 0.0 && nu.is_finite()) {
+        // The gate on the reported scale.
+        let gate = HALF_GATE * scale;
+        if !(s > 0.0 && nu.is_finite() && nu * nu <= gate * gate * s) {
             return;
         }
         for (m, c) in self.mean.iter_mut().zip(&col) {
