@@ -57,6 +57,18 @@ impl Rig {
         }
     }
 
+    /// The rig's length whose swing at gravity `g` has `w0^2`:
+    /// `g / (w0^2 f)`, `f` the [`Rig::equivalent_fraction`].
+    pub(crate) fn length_at(self, g: f32, w0_squared: f32) -> f32 {
+        g / (w0_squared * self.equivalent_fraction())
+    }
+
+    /// `w0^2` of the rig's swing at gravity `g` and length `length`: the
+    /// same relation the other way, `g / (length f)`.
+    pub(crate) fn omega_squared_at(self, g: f32, length: f32) -> f32 {
+        g / (length * self.equivalent_fraction())
+    }
+
     /// Its name, as the command line and the files spell it.
     pub const fn name(self) -> &'static str {
         match self {

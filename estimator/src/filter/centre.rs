@@ -180,7 +180,7 @@ impl Centre {
             let timed = self.n_turns >= 1 && !released;
             let amplitude = 0.5 * libm::fabsf(point - before);
             half = Some(timed.then_some(amplitude));
-            self.released = (released && self.n_turns >= 1).then_some(amplitude);
+            self.released = released.then_some(amplitude);
             self.turn(point);
             if at_once {
                 self.last_len = 0;

@@ -308,7 +308,7 @@ impl Estimator<'_> {
         let period = w0_squared
             .filter(|_| is_length)
             .map(|(w2, rel)| {
-                let length = self.g_ratio * body.g / (w2 * body.rig.equivalent_fraction());
+                let length = body.rig.length_at(self.g_ratio * body.g, w2);
                 (length, rel * length)
             });
         if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
@@ -373,7 +373,7 @@ impl Estimator<'_> {
         if self.source_dt <= body.dt || !(length.is_finite() && length > 0.0) {
             return false;
         }
-        let w0 = libm::sqrtf(body.g / (length * body.rig.equivalent_fraction()));
+        let w0 = libm::sqrtf(body.rig.omega_squared_at(body.g, length));
         let x = (w0 * self.source_dt).min(COARSE_X);
         let expected = 3.0 / (2.0 + libm::cosf(x));
         libm::fabsf(r / expected - 1.0) <= max_mismatch

@@ -187,7 +187,7 @@ impl Estimator<'_> {
         let Some(spec) = body.params.first().filter(|s| s.declared && s.scales_with_g) else {
             return;
         };
-        let length = body.g / (w2 * body.rig.equivalent_fraction());
+        let length = body.rig.length_at(body.g, w2);
         if !(spec.physical(length) && a > 0.0 && self.bridged) {
             return;
         }
