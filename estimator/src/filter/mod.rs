@@ -66,6 +66,7 @@ use nalgebra::{ArrayStorage, SMatrix, SVector};
 
 mod centre;
 mod decay;
+mod early;
 mod full;
 mod kernels;
 mod output;
@@ -78,6 +79,7 @@ pub use output::StepOutput;
 
 use centre::Centre;
 use decay::Decay;
+use early::Early;
 use period::Period;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
@@ -165,6 +167,8 @@ pub struct Estimator<'m> {
     decay: Decay,
     /// The swing's period ([`StepOutput::period_length`]).
     period: Period,
+    /// The first half swings, timed before the period reads.
+    early: Early,
     /// Measurements refused as outliers so far, in a row now, and whether
     /// the last one was.
     outliers: u32,
@@ -212,6 +216,7 @@ impl<'m> Estimator<'m> {
             centre: Centre::default(),
             decay: Decay::default(),
             period: Period::default(),
+            early: Early::default(),
             outliers: 0,
             outlier_run: 0,
             outlier: false,
@@ -450,10 +455,12 @@ impl<'m> Estimator<'m> {
         if out.outlier {
             self.centre.gap();
             self.period.gap();
+            self.early.gap();
         } else {
             let was = self.centre.subtracting();
             let [x, _] = centred;
             self.period.push(x);
+            self.early.push(theta);
             if let Some(half) = self.centre.push(theta, rate) {
                 self.decay.turn(half);
                 // The source's own interval where coarser than the steps.
@@ -461,6 +468,10 @@ impl<'m> Estimator<'m> {
                 // A half swing from a release is timed, not sized.
                 let timed = half.or(self.centre.released_swing());
                 self.period.turn(timed, self.centre.middle() - (theta - x), dt, source_dt);
+                self.early.turn(timed, self.centre.middle(), dt);
+                if self.period.omega_squared().is_some() {
+                    self.early.finish();
+                }
                 // A moved offset moves the half swings' middles with it.
                 self.period.shift(self.centre.applied() - (theta - x));
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
@@ -533,8 +544,6 @@ impl<'m> Estimator<'m> {
         }
         let t = self.t.saturating_add(1);
         let (mut v, mut pb) = (self.v, self.pb);
-        // P only where the recursion runs here (it is 1296 bytes to copy).
-        let mut p: Option<Cov> = None;
         // The normalised innovation where the recursion forms S^-1.
         let mut nis = None;
         let tail = self.model.schedule_tail().filter(|_| self.uses_schedule());
@@ -564,15 +573,16 @@ impl<'m> Estimator<'m> {
                     Err(Error::FilterNotPositiveDefinite) => return self.refuse(f32::INFINITY),
                     other => other?,
                 };
-                let std = sqrt_diag(&new_p, LATENT_DIM);
-                p = Some(new_p);
+                if self.is_outlier(n) {
+                    return self.refuse(n);
+                }
+                // P only where the recursion runs here (it is 1296 bytes
+                // to copy), once the measurement is taken.
+                self.p = new_p;
                 nis = Some(n);
-                (m, std)
+                (m, sqrt_diag(&self.p, LATENT_DIM))
             }
         };
-        if let Some(n) = nis.filter(|n| self.is_outlier(*n)) {
-            return self.refuse(n);
-        }
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction.iter_mut().zip(
             m.iter()
@@ -582,9 +592,6 @@ impl<'m> Estimator<'m> {
             *c = new - old;
         }
         self.mean = m;
-        if let Some(p) = p {
-            self.p = p;
-        }
         self.v = v;
         self.pb = pb;
         self.param_std = param_std;

@@ -291,15 +291,6 @@ impl Period {
         self.read = self.fit();
     }
 
-    /// `w0^2` (1/s^2) from the last half swing alone, and its amplitude
-    /// (rad): where the turning point just found ended a half swing timed
-    /// from the one before.
-    pub(crate) fn last_half(&self) -> Option<(f32, f32)> {
-        let (d, c) = self.linked?;
-        let w = core::f32::consts::PI * c / d;
-        Some((w * w, self.amplitude?))
-    }
-
     /// `w0^2` (1/s^2) and its relative standard deviation, from
     /// [`MIN_PERIODS`] periods on.
     pub(crate) fn omega_squared(&self) -> Option<(f32, f32)> {
@@ -330,7 +321,7 @@ impl Period {
 /// `AGM(1, cos(a / 2))`: a pendulum's small-swing half period over its
 /// half period at amplitude `a` (four steps: converged to f32 for any
 /// amplitude below 2.5 rad).
-fn agm_of_cos_half(a: f32) -> f32 {
+pub(crate) fn agm_of_cos_half(a: f32) -> f32 {
     let (mut x, mut y) = (1.0f32, libm::cosf(0.5 * a));
     for _ in 0..4 {
         (x, y) = (0.5 * (x + y), libm::sqrtf(x * y));

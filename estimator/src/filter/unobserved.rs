@@ -20,12 +20,6 @@ const REOPEN: f32 = 8.0;
 /// Measurements in a row refused as outliers at most: the next is taken
 /// (a knock, not a tracker's glitch, moves every measurement after it).
 const MAX_OUTLIER_RUN: u8 = 3;
-/// A half swing's crossings' noise as an angle, rad: over its amplitude,
-/// its duration's relative standard deviation
-/// ([`Estimator::take_half_period`]).
-const CROSSING_NOISE: f32 = 0.005;
-/// The least relative standard deviation of a half swing's duration.
-const HALF_REL_FLOOR: f32 = 0.01;
 /// The most deviations (the innovation's, on the reported scale) a half
 /// swing's length may lie from the filter's for it to be taken: a knock
 /// or a missed crossing is not.
@@ -93,6 +87,7 @@ impl Estimator<'_> {
         self.centre.gap();
         self.decay.tick(self.model.blob().body.dt);
         self.period.gap();
+        self.early.gap();
         self.t = self.t.saturating_add(1);
         Ok(())
     }
@@ -159,27 +154,27 @@ impl Estimator<'_> {
         self.kinematics.gap();
     }
 
-    /// The last half swing the period timed, as a measurement of the length.
+    /// The last half swing timed ([`super::early`]), as a measurement of
+    /// the length.
     ///
     /// Taken after the parameters were reopened, each half swing until the
-    /// period gives its own reading ([`super::period`]): a filter started
-    /// afresh half a period to a period into the swing has a few dozen
-    /// measurements at 64, and the half swing it missed is timed. Its
-    /// `w0^2` reads as the length at the blob's gravity, with a relative
-    /// standard deviation of twice `sqrt((CROSSING_NOISE / a)^2 +
-    /// HALF_REL_FLOOR^2)` (`a` its amplitude), on the filter's own scale
-    /// (the reported deviations over the blob's calibrated scale); one
-    /// scalar update of the length's coordinate, refused beyond
+    /// period gives its own reading: a filter started afresh half a period
+    /// to a period into the swing has a few dozen measurements at 64, and
+    /// the half swings it missed are timed at their turning points'
+    /// middle. Its `w0^2` reads as the length at the blob's gravity, with
+    /// the half swing's relative standard deviation, on the filter's own
+    /// scale (the reported deviations over the blob's calibrated scale);
+    /// one scalar update of the length's coordinate, refused beyond
     /// [`HALF_GATE`] deviations. Within 5% after 64 on lab-check seeds 12,
-    /// 14, 15 and 16 (800, offsets to 0.1 rad): 681, 640 without (the
-    /// first half swing only, 676; `CROSSING_NOISE` 0.0025, 676; 0.01,
+    /// 14, 15 and 16 (800, offsets to 0.1 rad): 695; 640 without; 681 with
+    /// the half swings timed where they cross zero (the period's timing:
+    /// the first half swing only, 676; `CROSSING_NOISE` 0.0025, 676; 0.01,
     /// 668; `HALF_REL_FLOOR` 0.02, 669; a gate of 3, 677, of 5 or none,
-    /// 681); within 2% at the end 757, 755 without; 1 wrong and trusted
-    /// either way.
+    /// 681). Within 2% at the end 760, 755 without.
     #[cold]
     #[inline(never)]
     pub(super) fn take_half_period(&mut self) {
-        let Some((w2, a)) = self.period.last_half() else {
+        let Some((w2, rel)) = self.early.half_reading() else {
             return;
         };
         self.half_pending = self.period.omega_squared().is_none();
@@ -188,12 +183,10 @@ impl Estimator<'_> {
             return;
         };
         let length = body.rig.length_at(body.g, w2);
-        if !(spec.physical(length) && a > 0.0 && self.bridged) {
+        if !(spec.physical(length) && self.bridged) {
             return;
         }
         let q = spec.coordinate(length);
-        let noise = CROSSING_NOISE / a;
-        let rel = 2.0 * libm::sqrtf(noise * noise + HALF_REL_FLOOR * HALF_REL_FLOOR);
         // On the filter's own scale: its deviations are the reported ones
         // over the blob's calibrated scale.
         let scale = body.trust.std_scale.first().copied().unwrap_or(1.0);

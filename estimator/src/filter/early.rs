@@ -1,0 +1,317 @@
+//! The first half swings timed before the period's own reading: each at
+//! the crossing of its own turning points' middle, found in the angles
+//! kept since the turning point before.
+//!
+//! The period ([`super::period`]) times a half swing where the angle fed
+//! to the filter crosses zero, the offset subtracted. Before the offset is
+//! known (two or three turning points in), a swing about an offset as
+//! large as its amplitude crosses zero near a turning point, or not at
+//! all, and its first half swings go untimed: a filter started afresh a
+//! period into the swing then reads the length from a few dozen
+//! measurements. Here each half swing between the turning points `T1` and
+//! `T2` is timed where the measured angle crosses `(T1 + T2) / 2`, the
+//! swing's middle whatever the offset (to first order in the decay), found
+//! in the angles kept since the turning point before `T1` was found
+//! ([`KEPT`] at most), between `T1`'s extreme measurement and `T2`'s: the
+//! first and the last crossing there in the half swing's direction,
+//! interpolated between the measurements either side, averaged (a
+//! tracker's noise crosses back and forth). Two
+//! consecutive middles give a half swing's duration `d`; with `c = 1 /
+//! AGM(1, cos(a / 2))` (`a` its amplitude), `k = sum d / sum c` over the
+//! half swings read gives `w0 = pi / k`, as the period's does.
+//!
+//! It keeps angles only until the period gives its own reading: then it
+//! costs a comparison a step.
+
+use super::period::{agm_of_cos_half, MIN_AMPLITUDE};
+
+/// Measured angles kept: the last two half swings' (between the findings
+/// of their turning points) of a 3 m string at 0.04 s; a longer half swing
+/// is not timed.
+pub(crate) const KEPT: usize = 96;
+/// A half swing's crossings' noise as an angle, rad: over its amplitude,
+/// its duration's relative standard deviation.
+const CROSSING_NOISE: f32 = 0.005;
+/// The least relative standard deviation of a half swing's duration.
+const HALF_REL_FLOOR: f32 = 0.01;
+/// The largest share of the first half swing's range the angle may move in
+/// its first quarter for the recording's first angle to be its release
+/// ([`Early::released`]).
+const RELEASE_SHARE: f32 = 0.25;
+
+/// The angles of the last two half swings and the half swings timed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Early {
+    /// The angles measured since the turning point before the last was
+    /// found: `older` of them up to the last one's finding.
+    kept: [f32; KEPT],
+    older: u16,
+    /// How many are kept (`u16::MAX`: more than [`KEPT`]).
+    len: u16,
+    /// The last half swing's middle, in steps from the first angle kept
+    /// (NaN: none, or the run starts again).
+    middle: f32,
+    /// The last half swing's `d` (s) and amplitude (rad).
+    last: Option<(f32, f32)>,
+    /// Half swings read, `sum d` and `sum c`.
+    n: u16,
+    sum_d: f32,
+    sum_c: f32,
+    /// The smallest amplitude among them, rad.
+    least: f32,
+    /// The period gives its own reading: nothing more is kept.
+    done: bool,
+    /// A turning point was found.
+    turned: bool,
+}
+
+impl Default for Early {
+    fn default() -> Self {
+        Early {
+            kept: [0.0; KEPT],
+            older: 0,
+            len: 0,
+            middle: f32::NAN,
+            last: None,
+            n: 0,
+            sum_d: 0.0,
+            sum_c: 0.0,
+            least: f32::INFINITY,
+            done: false,
+            turned: false,
+        }
+    }
+}
+
+impl Early {
+    /// One step's measured angle.
+    #[inline(always)]
+    pub(crate) fn push(&mut self, theta: f32) {
+        if self.done {
+            return;
+        }
+        match self.kept.get_mut(usize::from(self.len)) {
+            Some(v) => {
+                *v = theta;
+                self.len += 1;
+            }
+            None => self.len = u16::MAX,
+        }
+    }
+
+    /// A step without a measurement: the run starts again.
+    pub(crate) fn gap(&mut self) {
+        self.len = u16::MAX;
+        self.middle = f32::NAN;
+    }
+
+    /// The period gives its own reading from now on.
+    pub(crate) fn finish(&mut self) {
+        self.done = true;
+    }
+
+    /// A turning point found: the half swing of amplitude `a` (`None`
+    /// where the turning points start again) it ends, about `level` (its
+    /// turning points' middle, as measured), is timed where it crossed
+    /// `level`; `dt` the step.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn turn(&mut self, a: Option<f32>, level: f32, dt: f32) {
+        if self.done {
+            return;
+        }
+        let (older, len) = (usize::from(self.older), usize::from(self.len));
+        let crossing = match a {
+            None if !self.turned => self.released(),
+            _ => a
+                .filter(|a| *a >= MIN_AMPLITUDE && *a < 3.0 && len <= KEPT)
+                .and_then(|_| self.crossing(level)),
+        };
+        self.turned = true;
+        let before = self.middle;
+        match (a, crossing) {
+            (Some(a), Some(c)) if !before.is_nan() && c > before => {
+                let d = (c - before) * dt;
+                self.last = Some((d, a));
+                self.n = self.n.saturating_add(1);
+                self.sum_d += d;
+                self.sum_c += 1.0 / agm_of_cos_half(a);
+                self.least = self.least.min(a);
+            }
+            _ => self.last = None,
+        }
+        // The last half swing's angles become the older ones.
+        if len <= KEPT {
+            for j in 0..len.saturating_sub(older) {
+                if let Some(x) = self.kept.get(older + j).copied()
+                    && let Some(v) = self.kept.get_mut(j)
+                {
+                    *v = x;
+                }
+            }
+            self.older = len.saturating_sub(older) as u16;
+            self.len = self.older;
+            self.middle = crossing.map_or(f32::NAN, |c| c - older as f32);
+        } else {
+            (self.older, self.len, self.middle) = (0, 0, f32::NAN);
+        }
+    }
+
+    /// The first half swing's middle where the recording starts at a
+    /// release the turning points did not take for one (a tracker's noise
+    /// on the rate): the angle moved by at most [`RELEASE_SHARE`] of the
+    /// half swing in its first quarter (a harmonic swing from rest, 15%;
+    /// from its middle, 38%), timed where it crossed the middle of its
+    /// first angle and its farthest.
+    fn released(&self) -> Option<f32> {
+        let kept = self.kept.get(..usize::from(self.len))?;
+        let x0 = *kept.first()?;
+        let (far, _) = kept.iter().enumerate().fold((0, 0.0f32), |(jb, db), (j, x)| {
+            let d = libm::fabsf(x - x0);
+            if d > db { (j, d) } else { (jb, db) }
+        });
+        let xf = *kept.get(far)?;
+        let range = libm::fabsf(xf - x0);
+        let quarter = *kept.get(far / 4)?;
+        if far < 4 || 0.5 * range < MIN_AMPLITUDE || libm::fabsf(quarter - x0) > RELEASE_SHARE * range {
+            return None;
+        }
+        let (level, dir) = (0.5 * (x0 + xf), if xf > x0 { 1.0 } else { -1.0 });
+        crossing_in(kept.get(..=far)?, 0, level, dir)
+    }
+
+    /// Where the angles kept crossed `level` between the last two turning
+    /// points (the older half swing's extreme one way and the last one's
+    /// the other), in steps from the first: the mean of the first such
+    /// crossing and the last.
+    fn crossing(&self, level: f32) -> Option<f32> {
+        let kept = self.kept.get(..usize::from(self.len))?;
+        let older = usize::from(self.older);
+        // The direction of the half swing: the angle is past its turn.
+        let dir = if kept.last()? > &level { 1.0 } else { -1.0 };
+        let extreme = |from: usize, to: usize, sign: f32| {
+            let slice = kept.get(from..to)?;
+            let (j, _) = slice
+                .iter()
+                .enumerate()
+                .fold((0, f32::NEG_INFINITY), |(jb, vb), (j, v)| if sign * v > vb { (j, sign * v) } else { (jb, vb) });
+            Some(from + j)
+        };
+        let start = if older > 0 { extreme(0, older, -dir)? } else { 0 };
+        let end = extreme(older, kept.len(), dir)?;
+        crossing_in(kept.get(start..=end)?, start, level, dir)
+    }
+
+    /// `w0^2` (1/s^2) from the last half swing alone and its relative
+    /// standard deviation: twice `sqrt((CROSSING_NOISE / a)^2 +
+    /// HALF_REL_FLOOR^2)`, `a` its amplitude.
+    pub(crate) fn half_reading(&self) -> Option<(f32, f32)> {
+        let (d, a) = self.last?;
+        let w = core::f32::consts::PI / (agm_of_cos_half(a) * d);
+        Some((w * w, relative(CROSSING_NOISE / a)))
+    }
+
+    /// `w0^2` (1/s^2) from the half swings read and its relative standard
+    /// deviation: the noise of the first middle and the last over the
+    /// half swings' number (their durations add up between them).
+    pub(crate) fn reading(&self) -> Option<(f32, f32)> {
+        if self.done || self.n == 0 || self.sum_d <= 0.0 {
+            return None;
+        }
+        let w = core::f32::consts::PI * self.sum_c / self.sum_d;
+        Some((w * w, relative(CROSSING_NOISE / (self.least * f32::from(self.n)))))
+    }
+}
+
+/// Where `segment` (its first angle `start` steps from the first kept)
+/// crossed `level` going `dir` (`1` upwards): the mean of the first such
+/// crossing and the last, interpolated between the angles either side.
+fn crossing_in(segment: &[f32], start: usize, level: f32, dir: f32) -> Option<f32> {
+    let mut first = None;
+    let mut last = None;
+    for (j, pair) in segment.windows(2).enumerate() {
+        let (Some(&x0), Some(&x1)) = (pair.first(), pair.get(1)) else {
+            continue;
+        };
+        let (u0, u1) = (dir * (x0 - level), dir * (x1 - level));
+        if u0 < 0.0 && u1 >= 0.0 {
+            let at = (start + j) as f32 + u0 / (u0 - u1);
+            first.get_or_insert(at);
+            last = Some(at);
+        }
+    }
+    Some(0.5 * (first? + last?))
+}
+
+/// Twice `sqrt(noise^2 + HALF_REL_FLOOR^2)`: `w0^2`'s relative standard
+/// deviation from `w0`'s timing noise.
+fn relative(noise: f32) -> f32 {
+    2.0 * libm::sqrtf(noise * noise + HALF_REL_FLOOR * HALF_REL_FLOOR)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+
+    /// A swing about an offset as large as its amplitude, sampled 40
+    /// times a period, turning points found where the angle is extreme:
+    /// its half swings give `w0^2` to a part in a thousand; a crossing of
+    /// zero (the period's) would see none.
+    #[test]
+    fn a_swing_about_its_amplitude_is_timed() {
+        let (w, c, a, dt) = (4.0f32, 0.06f32, 0.06f32, core::f32::consts::PI / 80.0);
+        let mut early = Early::default();
+        let mut turns = [c + a, f32::NAN];
+        for k in 0..=100u32 {
+            let t = k as f32 * dt;
+            early.push(c + a * libm::cosf(w * t));
+            // A turning point every 20 steps (w dt = pi / 20).
+            if k > 0 && k % 20 == 0 {
+                let now = c + a * libm::cosf(w * t);
+                turns = [turns[1], now];
+                let first = k == 20;
+                let level = if first { 0.5 * (c + a + now) } else { 0.5 * (turns[0] + turns[1]) };
+                early.turn(Some(a), level, dt);
+            }
+        }
+        let (w2, rel) = early.reading().unwrap();
+        // A swing at amplitude `a` is slower than `w0` by `AGM(1, cos(a / 2))`.
+        let w0 = w / agm_of_cos_half(a);
+        assert!((w2 / (w0 * w0) - 1.0).abs() < 1e-3, "{w2} against {}", w0 * w0);
+        assert_eq!(early.n, 4);
+        assert!(rel > 0.0 && rel < 0.1);
+        early.finish();
+        assert!(early.reading().is_none());
+    }
+
+    /// A swing `start` steps in (0: released at rest) at 40 samples a
+    /// period, the first turning point not taken for one (`None`, as where
+    /// the rate's noise hides a release), the next ones as found: the half
+    /// swings read in 60 steps.
+    fn read_from(start: u32) -> u16 {
+        let (w, a, dt) = (4.0f32, 0.2f32, core::f32::consts::PI / 80.0);
+        let mut early = Early::default();
+        let angle = |k: u32| a * libm::cosf(w * (k + start) as f32 * dt);
+        let mut last_turn = f32::NAN;
+        for k in 0..=60u32 {
+            early.push(angle(k));
+            // A turning point every 20 steps (w dt = pi / 20).
+            if k > 0 && (k + start).is_multiple_of(20) {
+                let now = angle(k);
+                let timed = (!last_turn.is_nan()).then_some(0.5 * (now - last_turn).abs());
+                early.turn(timed, 0.5 * (now + last_turn), dt);
+                last_turn = now;
+            }
+        }
+        early.n
+    }
+
+    /// A release the turning points missed is read from the angles: its
+    /// half swing is timed with the next; a start mid-swing is not.
+    #[test]
+    fn a_release_the_turning_points_missed_is_timed_from_the_angles() {
+        assert_eq!(read_from(0), 2);
+        assert_eq!(read_from(10), 1);
+    }
+}
