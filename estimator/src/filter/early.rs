@@ -29,6 +29,9 @@ use super::period::{agm_of_cos_half, MIN_AMPLITUDE};
 /// of their turning points) of a 3 m string at 0.04 s; a longer half swing
 /// is not timed.
 pub(crate) const KEPT: usize = 96;
+/// The largest relative departure of a half swing timed from the angles'
+/// own extremes from the half swings read before it.
+const OWN_GATE: f32 = 0.25;
 /// A half swing's crossings' noise as an angle, rad: over its amplitude,
 /// its duration's relative standard deviation.
 const CROSSING_NOISE: f32 = 0.005;
@@ -63,6 +66,8 @@ pub(crate) struct Early {
     done: bool,
     /// A turning point was found.
     turned: bool,
+    /// The last middle was timed from the angles' own extremes.
+    own: bool,
 }
 
 impl Default for Early {
@@ -79,6 +84,7 @@ impl Default for Early {
             least: f32::INFINITY,
             done: false,
             turned: false,
+            own: false,
         }
     }
 }
@@ -121,24 +127,41 @@ impl Early {
             return;
         }
         let (older, len) = (usize::from(self.older), usize::from(self.len));
-        let crossing = match a {
-            None if !self.turned => self.released(),
-            _ => a
-                .filter(|a| *a >= MIN_AMPLITUDE && *a < 3.0 && len <= KEPT)
-                .and_then(|_| self.crossing(level)),
+        // Where the turning points start again (a turn the rate's noise
+        // made or missed), the half swing's own extremes among the angles.
+        let (crossing, a, own) = match a {
+            None if !self.turned => (self.released(), None, false),
+            None if len <= KEPT => match self.own_turns() {
+                Some((level, a)) => (self.crossing(level), Some(a), true),
+                None => (None, None, false),
+            },
+            Some(a) if (MIN_AMPLITUDE..3.0).contains(&a) && len <= KEPT => {
+                (self.crossing(level), Some(a), false)
+            }
+            _ => (None, None, false),
         };
         self.turned = true;
         let before = self.middle;
-        match (a, crossing) {
-            (Some(a), Some(c)) if !before.is_nan() && c > before => {
-                let d = (c - before) * dt;
+        let doubtful = own || self.own;
+        self.own = own;
+        self.last = None;
+        if let (Some(a), Some(c)) = (a, crossing)
+            && !before.is_nan()
+            && c > before
+        {
+            let d = (c - before) * dt;
+            let c_a = 1.0 / agm_of_cos_half(a);
+            // A half swing timed from the angles' own extremes is read
+            // where it agrees with those before.
+            let k = self.sum_d / self.sum_c;
+            let agrees = self.n == 0 || libm::fabsf(d / c_a - k) <= OWN_GATE * k;
+            if !doubtful || agrees {
                 self.last = Some((d, a));
                 self.n = self.n.saturating_add(1);
                 self.sum_d += d;
-                self.sum_c += 1.0 / agm_of_cos_half(a);
+                self.sum_c += c_a;
                 self.least = self.least.min(a);
             }
-            _ => self.last = None,
         }
         // The last half swing's angles become the older ones.
         if len <= KEPT {
@@ -180,6 +203,23 @@ impl Early {
         crossing_in(kept.get(..=far)?, 0, level, dir)
     }
 
+    /// The middle and the amplitude of the last half swing from the angles'
+    /// own extremes: the older half swing's one way, where it is not its
+    /// last angle (the swing still going), and the last one's the other.
+    fn own_turns(&self) -> Option<(f32, f32)> {
+        let kept = self.kept.get(..usize::from(self.len))?;
+        let older = usize::from(self.older);
+        let dir = if kept.last()? > kept.get(older)? { 1.0 } else { -1.0 };
+        let start = extreme(kept, 0, older, -dir)?;
+        if start + 1 >= older {
+            return None;
+        }
+        let end = extreme(kept, older, kept.len(), dir)?;
+        let (x1, x2) = (*kept.get(start)?, *kept.get(end)?);
+        let a = 0.5 * libm::fabsf(x2 - x1);
+        (MIN_AMPLITUDE..3.0).contains(&a).then_some((0.5 * (x1 + x2), a))
+    }
+
     /// Where the angles kept crossed `level` between the last two turning
     /// points (the older half swing's extreme one way and the last one's
     /// the other), in steps from the first: the mean of the first such
@@ -189,16 +229,8 @@ impl Early {
         let older = usize::from(self.older);
         // The direction of the half swing: the angle is past its turn.
         let dir = if kept.last()? > &level { 1.0 } else { -1.0 };
-        let extreme = |from: usize, to: usize, sign: f32| {
-            let slice = kept.get(from..to)?;
-            let (j, _) = slice
-                .iter()
-                .enumerate()
-                .fold((0, f32::NEG_INFINITY), |(jb, vb), (j, v)| if sign * v > vb { (j, sign * v) } else { (jb, vb) });
-            Some(from + j)
-        };
-        let start = if older > 0 { extreme(0, older, -dir)? } else { 0 };
-        let end = extreme(older, kept.len(), dir)?;
+        let start = if older > 0 { extreme(kept, 0, older, -dir)? } else { 0 };
+        let end = extreme(kept, older, kept.len(), dir)?;
         crossing_in(kept.get(start..=end)?, start, level, dir)
     }
 
@@ -221,6 +253,19 @@ impl Early {
         let w = core::f32::consts::PI * self.sum_c / self.sum_d;
         Some((w * w, relative(CROSSING_NOISE / (self.least * f32::from(self.n)))))
     }
+}
+
+/// The index in `kept[from..to]` (counted from `kept`'s first) of the
+/// largest `sign * x`.
+fn extreme(kept: &[f32], from: usize, to: usize, sign: f32) -> Option<usize> {
+    let slice = kept.get(from..to)?;
+    let (j, v) = slice
+        .iter()
+        .enumerate()
+        .fold((0, f32::NEG_INFINITY), |(jb, vb), (j, v)| {
+            if sign * v > vb { (j, sign * v) } else { (jb, vb) }
+        });
+    v.is_finite().then_some(from + j)
 }
 
 /// Where `segment` (its first angle `start` steps from the first kept)
@@ -313,5 +358,31 @@ mod tests {
     fn a_release_the_turning_points_missed_is_timed_from_the_angles() {
         assert_eq!(read_from(0), 2);
         assert_eq!(read_from(10), 1);
+    }
+
+    /// A release whose first turn came three steps in (the rate's noise)
+    /// and whose next turn starts the turning points again (`None`): the
+    /// half swing between is timed from the angles' own extremes, and
+    /// read with the next.
+    #[test]
+    fn a_half_swing_after_a_restarted_chain_is_timed_from_its_own_extremes() {
+        let (w, a, dt) = (4.0f32, 0.2f32, core::f32::consts::PI / 80.0);
+        let mut early = Early::default();
+        let angle = |k: u32| a * libm::cosf(w * k as f32 * dt);
+        let mut last_turn = f32::NAN;
+        for k in 0..=60u32 {
+            early.push(angle(k));
+            let now = angle(k);
+            match k {
+                3 => early.turn(None, f32::NAN, dt),
+                20 => early.turn(None, f32::NAN, dt),
+                40 | 60 => early.turn(Some(a), 0.5 * (now + last_turn), dt),
+                _ => continue,
+            }
+            last_turn = now;
+        }
+        assert_eq!(early.n, 2);
+        let (w2, _) = early.reading().unwrap();
+        assert!((w2 / (w * w) - 1.0).abs() < 0.01, "{w2}");
     }
 }

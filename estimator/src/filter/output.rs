@@ -204,8 +204,8 @@ impl Estimator<'_> {
         // range (at the coordinate reported, held or not).
         let (mut params, mut param_std, period, agreement) =
             self.with_period(&read, in_range, w0_squared);
-        if held.is_none() && w0_squared.is_none() && in_range {
-            self.join_early(&mut params, &mut param_std);
+        if held.is_none() && w0_squared.is_none() {
+            self.join_early(&mut params, &mut param_std, in_range);
         }
         let mut checks = Checks {
             corrections: self.spread.n,
@@ -351,7 +351,7 @@ impl Estimator<'_> {
     /// 800, 695 without (reported where apart as well: 710).
     #[cold]
     #[inline(never)]
-    fn join_early(&self, params: &mut [f32; PARAM_DIM], std: &mut [f32; PARAM_DIM]) {
+    fn join_early(&self, params: &mut [f32; PARAM_DIM], std: &mut [f32; PARAM_DIM], calibrated: bool) {
         let Some((w2, rel)) = self.early.reading() else {
             return;
         };
@@ -363,9 +363,14 @@ impl Estimator<'_> {
             return;
         };
         let lp = body.rig.length_at(self.g_ratio * body.g, w2);
+        if !(lp.is_finite() && lp > 0.0) {
+            return;
+        }
         let (vk, vp) = (*s * *s, rel * rel * lp * lp);
         let apart = *l - lp;
-        if vk + vp > 0.0 && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
+        if !calibrated {
+            (*l, *s) = (lp, rel * lp);
+        } else if vk + vp > 0.0 && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
             *l += vk / (vk + vp) * (lp - *l);
             *s = libm::sqrtf(vk * vp / (vk + vp));
         }
