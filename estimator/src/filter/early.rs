@@ -32,6 +32,9 @@ pub(crate) const KEPT: usize = 96;
 /// The largest relative departure of a half swing timed from the angles'
 /// own extremes from the half swings read before it.
 const OWN_GATE: f32 = 0.25;
+/// The largest relative departure of two middles' interval from the
+/// interval between the half swing's extreme angles.
+const SPAN_GATE: f32 = 0.35;
 /// A half swing's crossings' noise as an angle, rad: over its amplitude,
 /// its duration's relative standard deviation.
 const CROSSING_NOISE: f32 = 0.005;
@@ -129,10 +132,14 @@ impl Early {
         let (older, len) = (usize::from(self.older), usize::from(self.len));
         // Where the turning points start again (a turn the rate's noise
         // made or missed), the half swing's own extremes among the angles.
-        let (crossing, a, own) = match a {
-            None if !self.turned => (self.released(), None, false),
+        let (timed, a, own) = match a {
+            None if !self.turned => (self.released().map(|c| (c, f32::NAN)), None, false),
+            // Its middle lies after the turn before was found.
             None if len <= KEPT => match self.own_turns() {
-                Some((level, a)) => (self.crossing(level), Some(a), true),
+                Some((level, a)) => {
+                    let timed = self.crossing(level).filter(|(c, _)| *c >= older as f32);
+                    (timed, Some(a), true)
+                }
                 None => (None, None, false),
             },
             Some(a) if (MIN_AMPLITUDE..3.0).contains(&a) && len <= KEPT => {
@@ -140,14 +147,18 @@ impl Early {
             }
             _ => (None, None, false),
         };
+        let crossing = timed.map(|(c, _)| c);
         self.turned = true;
         let before = self.middle;
         let doubtful = own || self.own;
         self.own = own;
         self.last = None;
-        if let (Some(a), Some(c)) = (a, crossing)
+        if let (Some(a), Some((c, span))) = (a, timed)
             && !before.is_nan()
             && c > before
+            // The middles' interval is about the turning points' (a
+            // turn the rate's noise made in a half swing is not one).
+            && libm::fabsf(c - before - span) <= SPAN_GATE * span
         {
             let d = (c - before) * dt;
             let c_a = 1.0 / agm_of_cos_half(a);
@@ -223,15 +234,16 @@ impl Early {
     /// Where the angles kept crossed `level` between the last two turning
     /// points (the older half swing's extreme one way and the last one's
     /// the other), in steps from the first: the mean of the first such
-    /// crossing and the last.
-    fn crossing(&self, level: f32) -> Option<f32> {
+    /// crossing and the last; with the steps between those extremes.
+    fn crossing(&self, level: f32) -> Option<(f32, f32)> {
         let kept = self.kept.get(..usize::from(self.len))?;
         let older = usize::from(self.older);
         // The direction of the half swing: the angle is past its turn.
         let dir = if kept.last()? > &level { 1.0 } else { -1.0 };
         let start = if older > 0 { extreme(kept, 0, older, -dir)? } else { 0 };
         let end = extreme(kept, older, kept.len(), dir)?;
-        crossing_in(kept.get(start..=end)?, start, level, dir)
+        let at = crossing_in(kept.get(start..=end)?, start, level, dir)?;
+        Some((at, (end - start) as f32))
     }
 
     /// `w0^2` (1/s^2) from the last half swing alone and its relative
@@ -384,5 +396,25 @@ mod tests {
         assert_eq!(early.n, 2);
         let (w2, _) = early.reading().unwrap();
         assert!((w2 / (w * w) - 1.0).abs() < 0.01, "{w2}");
+    }
+
+    /// Turning points found two steps late, and a turn the rate's noise
+    /// made five steps after one, the turning points started again at
+    /// it: the five steps between are no half swing, and the swing's
+    /// `w0^2` stays within 2%.
+    #[test]
+    fn a_turn_made_by_noise_is_not_a_half_swing() {
+        let (w, a, dt) = (4.0f32, 0.2f32, core::f32::consts::PI / 80.0);
+        let mut early = Early::default();
+        for k in 0..=82u32 {
+            early.push(a * libm::cosf(w * k as f32 * dt));
+            match k {
+                22 | 42 | 62 | 82 => early.turn(Some(a), 0.0, dt),
+                27 => early.turn(None, f32::NAN, dt),
+                _ => {}
+            }
+        }
+        let (w2, _) = early.reading().unwrap();
+        assert!((w2 / (w * w) - 1.0).abs() < 0.02, "{w2}");
     }
 }

@@ -205,7 +205,11 @@ impl Estimator<'_> {
         let (mut params, mut param_std, period, agreement) =
             self.with_period(&read, in_range, w0_squared);
         if held.is_none() && w0_squared.is_none() {
-            self.join_early(&mut params, &mut param_std, in_range);
+            // A model whose measurements it cannot explain, or whose swing
+            // is uneven (an offset not yet subtracted), is not believed
+            // over the half swings.
+            let suspect = !consistent || unevenness.is_some_and(|u| u > calib.max_unevenness);
+            self.join_early(&mut params, &mut param_std, in_range, suspect);
         }
         let mut checks = Checks {
             corrections: self.spread.n,
@@ -345,13 +349,24 @@ impl Estimator<'_> {
     /// The length joined with the first half swings' (their `w0^2` and
     /// its relative standard deviation, [`super::early`]) before the
     /// period gives its own, each weighted by its inverse variance, where
-    /// the two agree within [`trust::PERIOD_AGREES`] deviations (a reading
-    /// apart is not reported: few half swings can be wrong together).
-    /// Within 5% after 64 on lab-check seeds 12, 14, 15 and 16: 708 of
-    /// 800, 695 without (reported where apart as well: 710).
+    /// the two agree within [`trust::PERIOD_AGREES`] deviations. Further
+    /// apart, the half swings' is reported where the model is `suspect`
+    /// (its measurements inconsistent with it, or its swing uneven: an
+    /// offset not yet subtracted), else the model's (few half swings can
+    /// be wrong together); outside the `calibrated` range, the half
+    /// swings' alone, as the period's. Within 5% after 64 on lab-check
+    /// seeds 12, 14, 15 and 16: 708 of 800, 695 without (the half swings'
+    /// wherever apart: 710); with the later timing rules, 744, 745 with
+    /// the half swings' where suspect (746 with `early`'s span gate).
     #[cold]
     #[inline(never)]
-    fn join_early(&self, params: &mut [f32; PARAM_DIM], std: &mut [f32; PARAM_DIM], calibrated: bool) {
+    fn join_early(
+        &self,
+        params: &mut [f32; PARAM_DIM],
+        std: &mut [f32; PARAM_DIM],
+        calibrated: bool,
+        suspect: bool,
+    ) {
         let Some((w2, rel)) = self.early.reading() else {
             return;
         };
@@ -373,6 +388,8 @@ impl Estimator<'_> {
         } else if vk + vp > 0.0 && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
             *l += vk / (vk + vp) * (lp - *l);
             *s = libm::sqrtf(vk * vp / (vk + vp));
+        } else if suspect {
+            (*l, *s) = (lp, rel * lp);
         }
     }
 
