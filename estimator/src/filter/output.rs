@@ -325,27 +325,18 @@ impl Estimator<'_> {
             });
         if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
         {
-            let vk = if calibrated { *s * *s } else { f32::INFINITY };
-            let vp = sp * sp;
             // Two readings further apart than their deviations allow: one
             // is wrong, and the model's deviation is the one calibrated on
             // the training's draws alone.
-            let apart = *l - lp;
-            let agree = apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp);
-            agreement = match (vk.is_finite(), agree) {
-                (false, _) => Agreement::Unknown,
-                (true, true) => Agreement::Agrees,
-                (true, false) if libm::fabsf(apart) > trust::PERIOD_DISAGREES * lp => {
-                    Agreement::Disagrees
-                }
-                (true, false) => Agreement::Apart,
+            let known = calibrated && (*s * *s).is_finite();
+            let join = if known { joined((*l, *s), (lp, sp)) } else { None };
+            agreement = match join {
+                Some(_) => Agreement::Agrees,
+                None if !known => Agreement::Unknown,
+                None if libm::fabsf(*l - lp) > trust::PERIOD_DISAGREES * lp => Agreement::Disagrees,
+                None => Agreement::Apart,
             };
-            if agreement != Agreement::Agrees {
-                (*l, *s) = (lp, sp);
-            } else if vk + vp > 0.0 {
-                *l += vk / (vk + vp) * (lp - *l);
-                *s = libm::sqrtf(vk * vp / (vk + vp));
-            }
+            (*l, *s) = join.unwrap_or((lp, sp));
         }
         (params, param_std, period, agreement)
     }
@@ -385,16 +376,13 @@ impl Estimator<'_> {
         if !(lp.is_finite() && lp > 0.0) {
             return;
         }
-        let (vk, vp) = (*s * *s, rel * rel * lp * lp);
-        let apart = *l - lp;
-        if !calibrated {
-            (*l, *s) = (lp, rel * lp);
-        } else if vk + vp > 0.0 && apart * apart <= trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
-            *l += vk / (vk + vp) * (lp - *l);
-            *s = libm::sqrtf(vk * vp / (vk + vp));
-        } else if suspect {
-            (*l, *s) = (lp, rel * lp);
-        }
+        let reading = (lp, rel * lp);
+        (*l, *s) = match (calibrated, joined((*l, *s), reading)) {
+            (false, _) => reading,
+            (true, Some(join)) => join,
+            (true, None) if suspect => reading,
+            (true, None) => (*l, *s),
+        };
     }
 
     /// Whether the declared source gives at least `min_samples` samples a
@@ -455,5 +443,21 @@ impl Estimator<'_> {
             value: scale * trained,
             std: scale * libm::fabsf(spec.slope(q)) * calibrated,
         }
+    }
+}
+
+/// Two readings of the length with their standard deviations, `(l, s)`
+/// and `(lp, sp)`, joined by inverse variance where they agree within
+/// [`trust::PERIOD_AGREES`] deviations; `None` further apart.
+fn joined((l, s): (f32, f32), (lp, sp): (f32, f32)) -> Option<(f32, f32)> {
+    let (vk, vp) = (s * s, sp * sp);
+    let apart = l - lp;
+    if apart * apart > trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
+        return None;
+    }
+    if vk + vp > 0.0 {
+        Some((l + vk / (vk + vp) * (lp - l), libm::sqrtf(vk * vp / (vk + vp))))
+    } else {
+        Some((l, s))
     }
 }
