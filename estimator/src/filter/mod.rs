@@ -333,7 +333,8 @@ impl<'m> Estimator<'m> {
 
     /// Forecasts the raw states after the last measurement from the
     /// filter's mean `[y; p]` (not from the last measurement: the mean has
-    /// averaged its noise), writing `x_{n+1} ..` into `out`.
+    /// averaged its noise), writing `x_{n+1} ..` into `out`: as measured,
+    /// the angle's offset ([`StepOutput::offset`]) added back.
     ///
     /// # Errors
     ///
@@ -342,7 +343,12 @@ impl<'m> Estimator<'m> {
         if !self.started {
             return Err(Error::FilterNotStarted);
         }
-        self.model.rollout_from(&self.mean, out)
+        self.model.rollout_from(&self.mean, out)?;
+        let offset = self.centre.applied();
+        for [theta, _] in out.iter_mut() {
+            *theta += offset;
+        }
+        Ok(())
     }
 
     /// The covariance `P` after the last update, or `None` after a

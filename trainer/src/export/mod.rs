@@ -127,6 +127,10 @@ pub struct NoiseCandidate {
     pub r_latent: f64,
     /// The scorer's value (lower is better).
     pub score: Option<f64>,
+    /// The value that chooses among those near the best score, where the
+    /// scorer gives one ([`export_choosing_noise`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub then: Option<f64>,
     /// Why there is none.
     pub refused: Option<String>,
 }
@@ -144,10 +148,24 @@ pub fn export_selecting_noise(
     candidates: &[(Option<f64>, f64)],
     mut score: impl FnMut(&Model<'_>) -> Result<f64>,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
+    export_choosing_noise(dir, out, candidates, 0.0, |m| Ok((score(m)?, None)))
+}
+
+/// [`export_selecting_noise`] with a second value: `score` gives each
+/// draft `(first, then)`, and among the candidates whose first is within
+/// `tolerance` of the lowest, the lowest `then` is exported (the lowest
+/// first where none gives one).
+pub fn export_choosing_noise(
+    dir: &Path,
+    out: &Path,
+    candidates: &[(Option<f64>, f64)],
+    tolerance: f64,
+    mut score: impl FnMut(&Model<'_>) -> Result<(f64, Option<f64>)>,
+) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
     let mut prepared = Prepared::open(dir)?;
     let mut scored = Vec::with_capacity(candidates.len());
-    // The best draft so far, kept to be calibrated and written.
-    let mut best: Option<(f64, ExportOptions, Vec<u8>, Draft)> = None;
+    // Every scored draft, kept to calibrate and write the chosen one.
+    let mut drafts: Vec<(f64, f64, ExportOptions, Vec<u8>, Draft)> = Vec::new();
     for &(q, r) in candidates {
         let opts = ExportOptions {
             q_latent: q,
@@ -161,25 +179,30 @@ pub fn export_selecting_noise(
             let v = score(&m)?;
             Ok((v, bytes, d))
         });
-        let (score, refused) = match scored_draft {
-            Ok((v, bytes, d)) if v.is_finite() => {
-                if best.as_ref().is_none_or(|b| v < b.0) {
-                    best = Some((v, opts, bytes, d));
-                }
-                (Some(v), None)
+        let (value, refused) = match scored_draft {
+            Ok(((v, then), bytes, d)) if v.is_finite() && then.is_none_or(f64::is_finite) => {
+                drafts.push((v, then.unwrap_or(v), opts, bytes, d));
+                (Some((v, then)), None)
             }
-            Ok((v, ..)) => (None, Some(format!("score {v}"))),
+            Ok(((v, then), ..)) => (None, Some(format!("score {v}, then {then:?}"))),
             Err(e) => (None, Some(format!("{e:#}"))),
         };
         scored.push(NoiseCandidate {
             q_latent: q,
             r_latent: r,
-            score,
+            score: value.map(|v| v.0),
+            then: value.and_then(|v| v.1),
             refused,
         });
     }
-    let info = match best {
-        Some((_, opts, bytes, d)) => prepared.finish_draft(&opts, &bytes, d, out)?,
+    let lowest = drafts.iter().map(|d| d.0).fold(f64::INFINITY, f64::min);
+    // The first of the lowest `then` among those near the lowest score.
+    let chosen = drafts
+        .into_iter()
+        .filter(|d| d.0 <= lowest + tolerance)
+        .reduce(|best, d| if d.1 < best.1 { d } else { best });
+    let info = match chosen {
+        Some((_, _, opts, bytes, d)) => prepared.finish_draft(&opts, &bytes, d, out)?,
         None => prepared.finish(&ExportOptions::default(), out)?,
     };
     Ok((info, scored))
@@ -212,11 +235,26 @@ pub fn export_lab_tuned_on(
     out: &Path,
     cfg: &labcheck::LabCheckConfig,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
-    let pairs: Vec<(Option<f64>, f64)> = LAB_Q_CANDIDATES
+    export_selecting_noise(dir, out, &lab_pairs(), |m| labcheck::misses(m, cfg))
+}
+
+/// [`export_lab`] with the pair of [`LAB_Q_CANDIDATES`] and
+/// [`LAB_R_CANDIDATES`] chosen by `score` ([`export_choosing_noise`]).
+pub fn export_lab_scored(
+    dir: &Path,
+    out: &Path,
+    tolerance: f64,
+    score: impl FnMut(&Model<'_>) -> Result<(f64, Option<f64>)>,
+) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
+    export_choosing_noise(dir, out, &lab_pairs(), tolerance, score)
+}
+
+/// Every pair of [`LAB_Q_CANDIDATES`] and [`LAB_R_CANDIDATES`].
+fn lab_pairs() -> Vec<(Option<f64>, f64)> {
+    LAB_Q_CANDIDATES
         .iter()
         .flat_map(|&q| LAB_R_CANDIDATES.iter().map(move |&r| (Some(q), r)))
-        .collect();
-    export_selecting_noise(dir, out, &pairs, |m| labcheck::misses(m, cfg))
+        .collect()
 }
 
 /// A KLM run opened for export: its model loaded and `F` refitted over its

@@ -230,9 +230,29 @@ pub const MIXED_NAME: &str = "mixed";
 /// The name of a dissipation given by [`LabCheckConfig::dissipation`].
 pub const DRAWN_NAME: &str = "given";
 
-/// Runs the estimator of `model` over the recordings of `cfg`, at the
-/// lab's `g` (declared), each imported at the blob's interval.
-pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
+/// One recording of a lab-check: what was drawn, and it imported at the
+/// blob's interval.
+pub struct Drawn {
+    /// The recording's place among the config's.
+    pub index: usize,
+    /// What was drawn.
+    pub spec: LabSpec,
+    /// Its effect's name in the tables ([`MIXED_NAME`], [`DRAWN_NAME`] or
+    /// the effect's own).
+    pub effect: &'static str,
+    /// It recorded and imported at the blob's interval.
+    pub rollout: Rollout,
+    /// The source's own median interval, s.
+    pub source_dt: f64,
+}
+
+/// The recordings of `cfg` for a blob of `rig` at the interval `dt`, in
+/// order, each drawn and recorded from the config's seed.
+pub fn recordings(
+    cfg: &LabCheckConfig,
+    rig: Rig,
+    dt: f64,
+) -> Result<impl Iterator<Item = Result<Drawn>> + '_> {
     let range = |[lo, hi]: [f64; 2], positive: bool| {
         lo.is_finite() && hi.is_finite() && lo <= hi && (!positive || lo > 0.0)
     };
@@ -247,11 +267,8 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         "lab-check: lengths, swings, durations and rates need finite ranges LO <= HI above 0, the noise a finite range from 0, the offsets a finite range LO <= HI"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let rig = model.blob().body.rig;
-    let dt = f64::from(model.blob().body.dt);
     let turns = EFFECTS.len() + usize::from(cfg.mixed);
-    let mut out = Vec::with_capacity(cfg.recordings);
-    for k in 0..cfg.recordings {
+    Ok((0..cfg.recordings).map(move |k| {
         let mixed = k % turns == EFFECTS.len();
         let (kind, range) = EFFECTS[k % turns % EFFECTS.len()];
         let mut spec = draw(&mut rng, cfg, rig, kind, range);
@@ -261,18 +278,47 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
         if let Some(d) = &cfg.dissipation {
             spec.effects = draw_mixed(&mut rng, d);
         }
-        let name = match (&cfg.dissipation, mixed) {
+        let effect = match (&cfg.dissipation, mixed) {
             (Some(_), _) => DRAWN_NAME,
             (None, true) => MIXED_NAME,
             (None, false) => kind.name(),
         };
+        let (rollout, source_dt) = import_at(&spec.record(&mut rng), dt).with_context(|| {
+            format!(
+                "lab recording {k} ({:.3} m, {:.3} rad)",
+                spec.length, spec.theta0
+            )
+        })?;
+        Ok(Drawn {
+            index: k,
+            spec,
+            effect,
+            rollout,
+            source_dt,
+        })
+    }))
+}
+
+/// Runs the estimator of `model` over the recordings of `cfg`, at the
+/// lab's `g` (declared), each imported at the blob's interval.
+pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
+    let rig = model.blob().body.rig;
+    let dt = f64::from(model.blob().body.dt);
+    let mut out = Vec::with_capacity(cfg.recordings);
+    for drawn in recordings(cfg, rig, dt)? {
+        let Drawn {
+            index: k,
+            spec,
+            effect: name,
+            rollout: r,
+            source_dt: source,
+        } = drawn?;
         let context = || {
             format!(
                 "lab recording {k} ({:.3} m, {:.3} rad)",
                 spec.length, spec.theta0
             )
         };
-        let (r, source) = import_at(&spec.record(&mut rng), dt).with_context(context)?;
         let (first, end) = blob_reads(model, &r, dt, Some(LAB_G), source).with_context(context)?;
         let (peer_first, peer_end) = peer_reads(&r, dt, LAB_G, rig).with_context(context)?;
         let Some(effect) = spec.effects.first() else {

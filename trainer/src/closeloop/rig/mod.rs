@@ -12,8 +12,8 @@
 //!    else trained anew.
 //! 3. Train it (`learn::train`, a progress bar, a time estimate first),
 //!    export it with its filter's noise chosen on lab-like recordings
-//!    around the plan, and calibrate its trust verdict on held-out draws
-//!    of the plan (`export::export_lab_tuned_on`).
+//!    around the plan by their lengths, then forecasts (`noise`), and
+//!    calibrate its trust verdict on held-out draws of the plan.
 //! 4. Read each held-out part with the given blob (before) and the new
 //!    one (after): forecast error, the length against the period's, the
 //!    verdict, the effect against the diagnosis (`read::held_out`); the
@@ -37,6 +37,7 @@ use crate::export;
 use crate::learn::config::TrainConfig;
 
 mod around;
+mod noise;
 mod read;
 mod report;
 
@@ -88,6 +89,8 @@ pub struct RigLoopReport {
     pub config: TrainConfig,
     /// The time estimated before training, s.
     pub estimated_seconds: f64,
+    /// The filter's noise pairs tried and their scores (`noise`).
+    pub noise: Vec<export::NoiseCandidate>,
     /// Per recording.
     pub recordings: Vec<RigRecording>,
     /// Wall time, s.
@@ -155,7 +158,8 @@ pub fn close_loop_rig(
     models::train_or_reuse(&run, plan.cfg.clone(), bar)?;
     let blob = out.join("rig.kkf");
     say("choosing the filter's noise and calibrating the verdict");
-    export::export_lab_tuned_on(&run, &blob, &around::tuning_set(&plan.cfg))?;
+    let tuning = around::tuning_set(&plan.cfg);
+    let (_, noise) = noise::export(&run, &blob, &tuning)?;
     let after_bytes = std::fs::read(&blob)?;
     let after = models::open(&after_bytes, &blob.display().to_string())?;
     // 4. Before and after on the held-out parts.
@@ -182,6 +186,7 @@ pub fn close_loop_rig(
         effect_reason: plan.effect_reason,
         config: plan.cfg,
         estimated_seconds: estimated,
+        noise,
         recordings,
         seconds: start.elapsed().as_secs_f64(),
     };
