@@ -67,6 +67,7 @@ use nalgebra::{ArrayStorage, SMatrix, SVector};
 mod centre;
 mod decay;
 mod early;
+mod fit;
 mod full;
 mod kernels;
 mod output;
@@ -80,6 +81,7 @@ pub use output::StepOutput;
 use centre::Centre;
 use decay::Decay;
 use early::Early;
+use fit::Fit;
 use period::Period;
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
 
@@ -169,6 +171,8 @@ pub struct Estimator<'m> {
     period: Period,
     /// The first half swings, timed before the period reads.
     early: Early,
+    /// The swing's equation fitted before the period reads.
+    fit: Fit,
     /// Measurements refused as outliers so far, in a row now, and whether
     /// the last one was.
     outliers: u32,
@@ -217,6 +221,7 @@ impl<'m> Estimator<'m> {
             decay: Decay::default(),
             period: Period::default(),
             early: Early::default(),
+            fit: Fit::default(),
             outliers: 0,
             outlier_run: 0,
             outlier: false,
@@ -462,11 +467,13 @@ impl<'m> Estimator<'m> {
             self.centre.gap();
             self.period.gap();
             self.early.gap();
+            self.fit.hold(dt);
         } else {
             let was = self.centre.subtracting();
             let [x, _] = centred;
             self.period.push(x);
             self.early.push(theta);
+            self.fit.push(theta, dt);
             if let Some(half) = self.centre.push(theta, rate) {
                 self.decay.turn(half);
                 // The source's own interval where coarser than the steps.
@@ -477,6 +484,9 @@ impl<'m> Estimator<'m> {
                 self.early.turn(timed, self.centre.middle(), dt);
                 if self.period.omega_squared().is_some() {
                     self.early.finish();
+                    if self.t >= fit::FIT_STEPS {
+                        self.fit.finish();
+                    }
                 }
                 // A moved offset moves the half swings' middles with it.
                 self.period.shift(self.centre.applied() - (theta - x));

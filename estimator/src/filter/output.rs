@@ -1,6 +1,6 @@
 //! What one step reports.
 
-use super::Estimator;
+use super::{Estimator, fit};
 use super::kernels::tail;
 use crate::blob::ParamSpec;
 use crate::trust::{self, Checks, Trust};
@@ -204,7 +204,7 @@ impl Estimator<'_> {
         // range (at the coordinate reported, held or not).
         let (mut params, mut param_std, period, agreement) =
             self.with_period(&read, in_range, w0_squared);
-        if held.is_none() && w0_squared.is_none() {
+        if held.is_none() && (w0_squared.is_none() || self.t < fit::FIT_STEPS) {
             // In the first two windows, a model whose measurements it
             // cannot explain, or whose swing is uneven (an offset not yet
             // subtracted), is not believed over the half swings (later, a
@@ -362,7 +362,7 @@ impl Estimator<'_> {
         calibrated: bool,
         suspect: bool,
     ) {
-        let Some((w2, rel)) = self.early.reading() else {
+        let Some((w2, rel)) = self.first_swings() else {
             return;
         };
         let body = &self.model.blob().body;
@@ -383,6 +383,25 @@ impl Estimator<'_> {
             (true, None) if suspect => reading,
             (true, None) => (*l, *s),
         };
+    }
+
+    /// `w0^2` and its relative standard deviation from the first swings:
+    /// their half swings timed ([`super::early`]) and their equation
+    /// fitted ([`super::fit`]), joined by inverse variance where they
+    /// agree, else the sharper.
+    fn first_swings(&self) -> Option<(f32, f32)> {
+        let dt = self.model.blob().body.dt;
+        match (self.early.reading(), self.fit.reading(dt, self.source_dt)) {
+            (Some((w_e, r_e)), Some((w_f, r_f))) => {
+                let (s_e, s_f) = (r_e * w_e, r_f * w_f);
+                match joined((w_e, s_e), (w_f, s_f)) {
+                    Some((w, s)) => Some((w, s / w)),
+                    None if r_f < r_e => Some((w_f, r_f)),
+                    None => Some((w_e, r_e)),
+                }
+            }
+            (early, fit) => early.or(fit),
+        }
     }
 
     /// Whether the declared source gives at least `min_samples` samples a

@@ -88,6 +88,7 @@ impl Estimator<'_> {
         self.decay.tick(self.model.blob().body.dt);
         self.period.gap();
         self.early.gap();
+        self.fit.gap();
         self.t = self.t.saturating_add(1);
         Ok(())
     }

@@ -1,0 +1,288 @@
+//! The swing's equation fitted to the first measurements, before the
+//! period reads: `theta'' = -w0^2 sin(theta - c) - gamma theta'`, by least
+//! squares on the angle itself, twice integrated.
+//!
+//! With `a = w0^2 cos c` and `b = w0^2 sin c`, `sin(theta - c) = (a sin
+//! theta - b cos theta) / w0^2` exactly, so the measured angle is linear in
+//! the unknowns:
+//!
+//! `theta(t) = theta_0 + v t - a S(t) + b C(t) - gamma I(t)`,
+//!
+//! `S` and `C` the double integrals of `sin theta` and `cos theta` from the
+//! first measurement, `I` the integral of `theta` (trapezoids at the
+//! step), `v = theta'(0) + gamma theta_0`. Each measurement is a row of the
+//! regression, added by square-root-free Givens rotations (Gentleman's)
+//! to its factor `R = D^(1/2) U`, `U` unit upper triangular (no matrix is
+//! stored beyond it; a Cortex-M4F takes a square root in software);
+//! `w0^2 = sqrt(a^2 + b^2)`. The offset
+//! `c` needs no centre and the sine no small swing, and every
+//! measurement, not a few crossings, times the swing: a string of 1.4 m
+//! gives its length within a few percent from one period.
+//!
+//! Its standard deviation: the residuals' variance through `(R^T R)^-1 =
+//! U^-1 D^-1 U^-T`,
+//! times [`STD_SCALE`] (the residuals are not independent: a tracker's
+//! noise interpolated to the steps, and the friction the equation lacks).
+//! It fits until the period gives its own reading, then costs a
+//! comparison a step; a step without a measurement starts it again.
+
+/// Steps the fit runs at least (two windows), and on until the period
+/// reads.
+pub(crate) const FIT_STEPS: u32 = 2 * crate::WINDOW as u32;
+/// Unknowns: `theta_0`, `v`, `a`, `b`, `gamma`.
+const N: usize = 5;
+/// Fewest measurements fitted before a reading.
+const MIN_ROWS: u16 = 24;
+/// The residuals' standard deviation scale.
+const STD_SCALE: f32 = 2.0;
+/// The least relative standard deviation of `w0^2`.
+const REL_FLOOR: f32 = 0.01;
+/// The widest angle fitted, rad: real rigs swing to 1.5 rad about an
+/// offset of a few hundredths. Beyond it the fit stops (a wider release
+/// is read by the model and the period, as the protocol's blob was
+/// calibrated).
+const MAX_ANGLE: f32 = 1.6;
+
+/// The regression's factor and the integrals it runs on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Fit {
+    /// `D`, the strict upper triangle of `U` row by row, and the rotated
+    /// targets (`U beta = z` at the solution).
+    d: [f32; N],
+    u: [[f32; N]; N],
+    z: [f32; N],
+    /// Residual sum of squares.
+    rss: f32,
+    /// Rows fitted.
+    rows: u16,
+    /// Time since the first measurement, s.
+    t: f32,
+    /// The last angle, its sine and cosine; the integrals `I`, `S' = int
+    /// sin`, `S`, `C' = int cos`, `C`.
+    last: Option<[f32; 3]>,
+    i: f32,
+    s1: f32,
+    s: f32,
+    c1: f32,
+    c: f32,
+    /// The period gives its own reading, or the angle went too wide.
+    done: bool,
+}
+
+impl Default for Fit {
+    fn default() -> Self {
+        Fit {
+            d: [0.0; N],
+            u: [[0.0; N]; N],
+            z: [0.0; N],
+            rss: 0.0,
+            rows: 0,
+            t: 0.0,
+            last: None,
+            i: 0.0,
+            s1: 0.0,
+            s: 0.0,
+            c1: 0.0,
+            c: 0.0,
+            done: false,
+        }
+    }
+}
+
+impl Fit {
+    /// One step's measured angle, `dt` after the last.
+    #[inline(always)]
+    pub(crate) fn push(&mut self, theta: f32, dt: f32) {
+        if self.done {
+            return;
+        }
+        self.push_row(theta, dt);
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn push_row(&mut self, theta: f32, dt: f32) {
+        if libm::fabsf(theta) > MAX_ANGLE {
+            self.done = true;
+            return;
+        }
+        let (sn, cs) = sin_cos(theta);
+        self.integrate(theta, sn, cs, dt);
+        let row = [1.0, self.t, -self.s, self.c, -self.i];
+        self.add(row, theta);
+    }
+
+    /// One step whose measurement was refused: the integrals run on at
+    /// the last angle; no row is fitted.
+    pub(crate) fn hold(&mut self, dt: f32) {
+        if self.done {
+            return;
+        }
+        if let Some([theta, sn, cs]) = self.last {
+            self.integrate(theta, sn, cs, dt);
+        }
+    }
+
+    /// A step without a measurement: the fit starts again.
+    pub(crate) fn gap(&mut self) {
+        if !self.done {
+            *self = Fit::default();
+        }
+    }
+
+    /// The period gives its own reading from now on.
+    pub(crate) fn finish(&mut self) {
+        self.done = true;
+    }
+
+    /// The integrals to the angle `theta` (its sine and cosine), `dt` on.
+    fn integrate(&mut self, theta: f32, sn: f32, cs: f32, dt: f32) {
+        if let Some([t0, s0, c0]) = self.last {
+            let h = 0.5 * dt;
+            self.t += dt;
+            self.i += h * (t0 + theta);
+            let (s1, c1) = (self.s1 + h * (s0 + sn), self.c1 + h * (c0 + cs));
+            self.s += h * (self.s1 + s1);
+            self.c += h * (self.c1 + c1);
+            (self.s1, self.c1) = (s1, c1);
+        }
+        self.last = Some([theta, sn, cs]);
+    }
+
+    /// The row `x` with target `y` (weight 1) rotated into `D` and `U`.
+    fn add(&mut self, mut x: [f32; N], mut y: f32) {
+        let mut w = 1.0f32;
+        let rows = self.d.iter_mut().zip(self.u.iter_mut()).zip(self.z.iter_mut());
+        for (k, ((dk, uk), zk)) in rows.enumerate() {
+            // The row is taken up whole (the first rows fill `D`).
+            if w == 0.0 {
+                break;
+            }
+            let (Some(ut), Some(xt)) = (uk.get_mut(k + 1..), x.get_mut(k..)) else {
+                return;
+            };
+            let Some((&mut xk, xt)) = xt.split_first_mut() else {
+                return;
+            };
+            if xk == 0.0 {
+                continue;
+            }
+            let dp = *dk + w * xk * xk;
+            let inv = 1.0 / dp;
+            let (cbar, sbar) = (*dk * inv, w * xk * inv);
+            w *= cbar;
+            *dk = dp;
+            for (uj, xj) in ut.iter_mut().zip(xt.iter_mut()) {
+                let v = *xj;
+                *xj = v - xk * *uj;
+                *uj = cbar * *uj + sbar * v;
+            }
+            let v = y;
+            y = v - xk * *zk;
+            *zk = cbar * *zk + sbar * v;
+        }
+        self.rss += w * y * y;
+        self.rows = self.rows.saturating_add(1);
+    }
+
+    /// `w0^2` (1/s^2) and its relative standard deviation, once
+    /// [`MIN_ROWS`] measurements are fitted; the angles interpolated
+    /// between a source's frames `source_dt` apart where that is more than
+    /// the step `dt`.
+    pub(crate) fn reading(&self, dt: f32, source_dt: f32) -> Option<(f32, f32)> {
+        if self.done || self.rows < MIN_ROWS {
+            return None;
+        }
+        let (w2, rel) = self.solved()?;
+        if source_dt <= dt {
+            return Some((w2, rel));
+        }
+        // The rows between a source's frames are interpolations: the
+        // independent ones are fewer by `h / dt`.
+        Some((w2, rel * libm::sqrtf(source_dt / dt)))
+    }
+
+    /// The least-squares solution's `w0^2` and relative standard deviation.
+    ///
+    /// `a`, `b` and `gamma` are the last three unknowns, so the lower-right
+    /// 3 x 3 blocks of `D` and `U` alone give them and their covariance.
+    #[cold]
+    #[inline(never)]
+    fn solved(&self) -> Option<(f32, f32)> {
+        let [_, _, ua, ub, _] = self.u;
+        let [_, _, za, zb, zg] = self.z;
+        let [_, _, da, db, dg] = self.d;
+        if da <= 0.0 || db <= 0.0 || dg <= 0.0 {
+            return None;
+        }
+        let (uab, uag, ubg) = (ua[3], ua[4], ub[4]);
+        // Back substitution, U beta = z.
+        let b = zb - ubg * zg;
+        let a = za - uab * b - uag * zg;
+        let w2 = libm::sqrtf(a * a + b * b);
+        if !(w2.is_finite() && w2 > 0.0) {
+            return None;
+        }
+        // Rows a and b of U^-1 (unit upper triangular) over a, b, gamma.
+        let (iab, ibg) = (-uab, -ubg);
+        let iag = uab * ubg - uag;
+        // var(w0^2) = u^T Cov(a, b) u, u = (a, b) / w0^2;
+        // Cov = s^2 U^-1 D^-1 U^-T.
+        let (pa, pb) = (a / w2, b / w2);
+        let (g1, g2, g3) = (pa, pa * iab + pb, pa * iag + pb * ibg);
+        let g = g1 * g1 / da + g2 * g2 / db + g3 * g3 / dg;
+        let s2 = self.rss / f32::from(self.rows.saturating_sub(N as u16).max(1));
+        let rel2 = STD_SCALE * STD_SCALE * s2 * g / (w2 * w2);
+        Some((w2, libm::sqrtf(rel2 + REL_FLOOR * REL_FLOOR)))
+    }
+}
+
+/// `sin x` and `cos x` for `|x| <= MAX_ANGLE`, by their series to `x^10`
+/// (within 5e-6 there; the `libm` functions run in double precision,
+/// which a Cortex-M4F emulates).
+fn sin_cos(x: f32) -> (f32, f32) {
+    let x2 = x * x;
+    let s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))));
+    let c = 1.0
+        - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0))));
+    (s, c)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing)]
+mod tests {
+    use super::*;
+
+    /// The series against `libm`'s sine and cosine up to [`MAX_ANGLE`].
+    #[test]
+    fn the_series_is_within_5e_6() {
+        for k in 0..=160 {
+            let x = -MAX_ANGLE + 0.02 * k as f32;
+            let (s, c) = sin_cos(x);
+            assert!((s - libm::sinf(x)).abs() < 5e-6, "{x}");
+            assert!((c - libm::cosf(x)).abs() < 5e-6, "{x}");
+        }
+    }
+
+    /// A wide swing about an offset, damped, integrated finely: one period
+    /// of it sampled at 0.04 s gives `w0^2` within 0.5%, a sharp std.
+    #[test]
+    fn a_damped_swing_about_an_offset_gives_w0_squared() {
+        let (w2, c, gamma, dt) = (9.81f32 / 1.2, 0.08f32, 0.05f32, 0.04f32);
+        let (mut th, mut om) = (c + 1.4f32, 0.0f32);
+        let mut fit = Fit::default();
+        let sub = 40;
+        let h = dt / sub as f32;
+        for _ in 0..60 {
+            fit.push(th, dt);
+            for _ in 0..sub {
+                // Semi-implicit Euler on the fine grid.
+                om += h * (-w2 * libm::sinf(th - c) - gamma * om);
+                th += h * om;
+            }
+        }
+        let (got, rel) = fit.reading(dt, 0.0).unwrap();
+        assert!((got / w2 - 1.0).abs() < 0.005, "{got} vs {w2}");
+        assert!(rel < 0.05, "{rel}");
+    }
+}
