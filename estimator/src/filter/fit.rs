@@ -35,8 +35,16 @@ const N: usize = 5;
 const MIN_ROWS: u16 = 24;
 /// The residuals' standard deviation scale.
 const STD_SCALE: f32 = 2.0;
+/// The widest relative standard deviation of `w0^2` read: a looser fit
+/// (less than a period seen, or the swing lost in the noise) is none.
+const MAX_REL: f32 = 0.1;
+/// The fewest periods seen before a reading.
+const MIN_PERIODS: f32 = 1.0;
 /// The least relative standard deviation of `w0^2`.
 const REL_FLOOR: f32 = 0.01;
+/// The largest half phase `w0 dt / 2` a step may span (8 steps a
+/// period).
+const MAX_STEP_PHASE: f32 = 0.4;
 /// The widest angle fitted, rad: real rigs swing to 1.5 rad about an
 /// offset of a few hundredths. Beyond it the fit stops (a wider release
 /// is read by the model and the period, as the protocol's blob was
@@ -193,13 +201,26 @@ impl Fit {
         if self.done || self.rows < MIN_ROWS {
             return None;
         }
-        let (w2, rel) = self.solved()?;
-        if source_dt <= dt {
-            return Some((w2, rel));
+        let (fitted, rel) = self.solved()?;
+        // The trapezoids take a swing's integral as the true one's times
+        // `x / tan x`, `x = w0 dt / 2`, and `S` is two of them: `w0^2`
+        // is the fitted `a` times its square, found by fixed point.
+        let mut w2 = fitted;
+        for _ in 0..3 {
+            let x = 0.5 * libm::sqrtf(w2) * dt;
+            if x >= MAX_STEP_PHASE {
+                return None;
+            }
+            let (sn, cs) = sin_cos(x);
+            let k = x * cs / sn;
+            w2 = fitted * k * k;
         }
         // The rows between a source's frames are interpolations: the
         // independent ones are fewer by `h / dt`.
-        Some((w2, rel * libm::sqrtf(source_dt / dt)))
+        let rel = if source_dt > dt { rel * libm::sqrtf(source_dt / dt) } else { rel };
+        // Less than [`MIN_PERIODS`] seen fits the noise as readily as the swing.
+        let seen = self.t * libm::sqrtf(w2) / core::f32::consts::TAU;
+        (rel <= MAX_REL && seen >= MIN_PERIODS).then_some((w2, rel))
     }
 
     /// The least-squares solution's `w0^2` and relative standard deviation.
