@@ -23,8 +23,9 @@
 //! U^-1 D^-1 U^-T`,
 //! times [`STD_SCALE`] (the residuals are not independent: a tracker's
 //! noise interpolated to the steps, and the friction the equation lacks).
-//! It fits until the period gives its own reading, then costs a
-//! comparison a step; a step without a measurement starts it again.
+//! It fits for [`FIT_STEPS`] and on until the period gives its own
+//! reading, then costs a comparison a step; a step without a measurement
+//! starts it again, and a refused one is bridged at the last angle.
 
 /// Steps the fit runs at least (two windows), and on until the period
 /// reads.
@@ -107,6 +108,7 @@ impl Fit {
         self.push_row(theta, dt);
     }
 
+    /// The integrals to `theta`, and its row rotated in.
     #[cold]
     #[inline(never)]
     fn push_row(&mut self, theta: f32, dt: f32) {

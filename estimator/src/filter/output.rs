@@ -341,11 +341,12 @@ impl Estimator<'_> {
         (params, param_std, period, agreement)
     }
 
-    /// The length joined with the first half swings' (their `w0^2` and
-    /// its relative standard deviation, [`super::early`]) before the
-    /// period gives its own, each weighted by its inverse variance, where
-    /// the two agree within [`trust::PERIOD_AGREES`] deviations. Further
-    /// apart, the half swings' is reported where the model is `suspect`
+    /// The length joined with the first swings' ([`Self::first_swings`]:
+    /// the half swings timed and the swing's equation fitted) before the
+    /// period gives its own and for two windows, each weighted by its
+    /// inverse variance, where the two agree within
+    /// [`trust::PERIOD_AGREES`] deviations. Further apart, the first
+    /// swings' is reported where the model is `suspect`
     /// (in the first two windows, its measurements inconsistent with it,
     /// or its swing uneven: an offset not yet subtracted), else the model's (few half swings can
     /// be wrong together); outside the `calibrated` range, the half

@@ -283,12 +283,8 @@ pub fn recordings(
             (None, true) => MIXED_NAME,
             (None, false) => kind.name(),
         };
-        let (rollout, source_dt) = import_at(&spec.record(&mut rng), dt).with_context(|| {
-            format!(
-                "lab recording {k} ({:.3} m, {:.3} rad)",
-                spec.length, spec.theta0
-            )
-        })?;
+        let (rollout, source_dt) =
+            import_at(&spec.record(&mut rng), dt).with_context(|| label(k, &spec))?;
         Ok(Drawn {
             index: k,
             spec,
@@ -297,6 +293,14 @@ pub fn recordings(
             source_dt,
         })
     }))
+}
+
+/// How an error names lab recording `k`.
+fn label(k: usize, spec: &LabSpec) -> String {
+    format!(
+        "lab recording {k} ({:.3} m, {:.3} rad)",
+        spec.length, spec.theta0
+    )
 }
 
 /// Runs the estimator of `model` over the recordings of `cfg`, at the
@@ -313,12 +317,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
             rollout: r,
             source_dt: source,
         } = drawn?;
-        let context = || {
-            format!(
-                "lab recording {k} ({:.3} m, {:.3} rad)",
-                spec.length, spec.theta0
-            )
-        };
+        let context = || label(k, &spec);
         let (first, end) = blob_reads(model, &r, dt, Some(LAB_G), source).with_context(context)?;
         let (peer_first, peer_end) = peer_reads(&r, dt, LAB_G, rig).with_context(context)?;
         let Some(effect) = spec.effects.first() else {
