@@ -217,12 +217,11 @@ impl Estimator<'_> {
         }
         let mut checks = Checks {
             corrections: self.spread.n,
-            afresh: self.afresh_until > 0
-                && (self.t < self.afresh_until
-                    || match (params.first(), param_std.first()) {
-                        (Some(p), Some(std)) => *std > trust::AFRESH_REL_STD * libm::fabsf(*p),
-                        _ => false,
-                    }),
+            afresh: self.afresh_until > 0 && self.t < self.afresh_until,
+            vague: match (params.first(), param_std.first()) {
+                (Some(p), Some(std)) => *std > trust::VERDICT_REL_STD * libm::fabsf(*p),
+                _ => false,
+            },
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
                 <= blob.body.filter.sigma_threshold,
             physical: specs
@@ -245,9 +244,12 @@ impl Estimator<'_> {
             source_ok: self.source_ok(length, calib.min_samples_per_period),
             period_confirms: false,
         };
-        // The period confirms the length where it is sharp and agrees.
-        checks.period_confirms = agreement == Agreement::Agrees
-            && period.is_some_and(|(length, std)| std <= trust::PERIOD_SHARP * length);
+        // The period confirms the length where it is sharp and agrees, or
+        // where it is sure (the model is the one wrong).
+        checks.period_confirms = period.is_some_and(|(length, std)| {
+            std <= trust::PERIOD_SHARP * length
+                && (agreement == Agreement::Agrees || std <= trust::PERIOD_SURE * length)
+        });
         StepOutput {
             t: self.t,
             params,

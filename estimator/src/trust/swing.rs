@@ -151,6 +151,16 @@ impl SwingWindow {
         swing
     }
 
+    /// The window read afresh, the widest swing so far kept: after the
+    /// offset is subtracted, the blocks' extremes and the unevenness were
+    /// the moved angles', the swing's size was not.
+    pub fn keep_widest(&self) -> Self {
+        SwingWindow {
+            widest: self.widest,
+            ..SwingWindow::default()
+        }
+    }
+
     /// The widest swing since the start: the largest half range of
     /// `theta` over the last one to two windows at any measurement so far
     /// (`None` before any angle was measured). Not NaN: a NaN angle never
