@@ -17,9 +17,4 @@ $K generate --lab 61 --offset 0.03 --seconds 40,90 --out runs/lab61
 for c in 1-viscous 2-coulomb 3-drag 4-viscous-drag 5-viscous-coulomb 7-coulomb-offset; do
   run lab61-$c runs/lab61/lab-61-$c.csv
 done
-# Four times the fine-tuning where the default leaves the short string's
-# model error (and where the given blob already carries the effect).
-for c in 1-viscous 4-viscous-drag; do
-  run lab61-$c-6000 --iterations 6000 runs/lab61/lab-61-$c.csv
-done
 python3 docs/close-loop-rig/collect.py > docs/close-loop-rig/results.md

@@ -31,12 +31,12 @@ pub struct Args {
     g: Option<f64>,
     #[command(flatten)]
     rig: RigArg,
-    /// Training iterations of each model (the two train at once; 1500
-    /// keeps a 40 s recording near a minute on two cores); with
-    /// `--weights`, of the fine-tuning (a blob trained anew runs three
-    /// times as many).
-    #[arg(long, default_value_t = 1500)]
-    iterations: usize,
+    /// Training iterations of each model (the two train at once; default
+    /// 1500, a 40 s recording near a minute on two cores); with
+    /// `--weights`, of the fine-tuning (default 6000; a blob trained anew
+    /// runs three times as many, default 4500).
+    #[arg(long)]
+    iterations: Option<usize>,
     /// Seed of both trainings.
     #[arg(long, default_value_t = 42)]
     seed: u64,
@@ -59,7 +59,14 @@ pub fn run(a: Args) -> Result<()> {
         rig: a.rig.rig,
         g: a.g.unwrap_or(default_g),
         g_declared: a.g.is_some(),
-        iterations: a.iterations,
+        iterations: match (&a.weights, a.iterations) {
+            (_, Some(n)) => n,
+            (Some(_), None) => closeloop::rig::FINE_TUNE_ITERATIONS,
+            (None, None) => closeloop::ITERATIONS,
+        },
+        anew_iterations: a.iterations.map_or(closeloop::rig::ANEW_ITERATIONS, |n| {
+            closeloop::rig::ANEW_FACTOR * n
+        }),
         seed: a.seed,
         quiet: a.quiet,
     };

@@ -63,6 +63,10 @@ mod score;
 pub use models::{NoiseChoice, R_CANDIDATES};
 pub use report::markdown;
 
+/// Training iterations of each of the loop's two models unless asked
+/// (`--iterations`): a 40 s recording near a minute on two cores.
+pub const ITERATIONS: usize = 1500;
+
 /// Share of each recording's time that is diagnosed and trained on; the
 /// rest is held out for the score.
 pub const FIT_SHARE: f64 = 2.0 / 3.0;
@@ -109,8 +113,11 @@ pub struct CloseLoopOptions {
     /// Whether the user declared `g` (else the lengths are read at the
     /// protocol's, and the report says so).
     pub g_declared: bool,
-    /// Training iterations of each of the two models.
+    /// Training iterations of each of the two models; with a given rig
+    /// blob, of the fine-tuning.
     pub iterations: usize,
+    /// With a given rig blob, the iterations of a blob trained anew.
+    pub anew_iterations: usize,
     /// Seed of both trainings.
     pub seed: u64,
     /// No progress bars.

@@ -41,17 +41,19 @@ mod noise;
 mod read;
 mod report;
 
-pub use around::{ANEW_FACTOR, LENGTH_SPAN};
+pub use around::{ANEW_FACTOR, ANEW_ITERATIONS, FINE_TUNE_ITERATIONS, LENGTH_SPAN};
 pub use read::BlobRead;
 pub use report::markdown;
 
 /// Seconds an iteration of a rig blob's training takes on the 2-core
-/// machine (128 windows of 128 steps, 64 wide), for the time estimate.
-pub const SECONDS_PER_ITERATION: f64 = 0.09;
+/// machine (128 windows of 128 steps, 64 wide), for the time estimate:
+/// 0.036 to 0.041 over the loop's runs (`docs/close-loop-rig/run.sh`).
+pub const SECONDS_PER_ITERATION: f64 = 0.04;
 
 /// Seconds the rest takes there: drawing the rollouts, the export's
-/// choice of the filter's noise and the calibration.
-pub const SECONDS_BESIDE: f64 = 150.0;
+/// choice of the filter's noise and the calibration (48 to 73 in those
+/// runs).
+pub const SECONDS_BESIDE: f64 = 75.0;
 
 /// One recording, before and after.
 #[derive(Debug, Clone, Serialize)]
