@@ -140,7 +140,8 @@ enum Agreement {
     /// Further apart: the period's is reported.
     Apart,
     /// Further apart and by more than [`trust::PERIOD_DISAGREES`] too: the
-    /// consistency check fails.
+    /// consistency check fails unless the period is sure
+    /// ([`trust::PERIOD_SURE`]).
     Disagrees,
 }
 
@@ -218,10 +219,14 @@ impl Estimator<'_> {
         let mut checks = Checks {
             corrections: self.spread.n,
             afresh: self.afresh_until > 0 && self.t < self.afresh_until,
-            vague: match (params.first(), param_std.first()) {
-                (Some(p), Some(std)) => *std > trust::VERDICT_REL_STD * libm::fabsf(*p),
-                _ => false,
-            },
+            // A NaN deviation is vague too.
+            vague: self.burn_until > 0
+                && match (params.first(), param_std.first()) {
+                    (Some(p), Some(std)) => {
+                        std.is_nan() || *std > trust::VERDICT_REL_STD * libm::fabsf(*p)
+                    }
+                    _ => false,
+                },
             settled: sigma.first().copied().unwrap_or(f32::INFINITY)
                 <= blob.body.filter.sigma_threshold,
             physical: specs

@@ -108,9 +108,9 @@ impl Estimator<'_> {
     /// the widest: the angles' range does not move with the offset), the
     /// envelope and the held estimate are read afresh. With the widest
     /// forgotten, a swing that friction stopped read as too small: on
-    /// lab-check seeds 12, 14, 15 and 16 (800), 720 of the right trusted
-    /// at the end rather than 712; on seeds 13 and 17 to 21 (1200), 1066
-    /// rather than 1054; none more wrong and trusted.
+    /// lab-check seeds 12, 14, 15 and 16 (800), 724 of the right trusted
+    /// at the end rather than 714; on seeds 13 and 17 to 21 (1200), 1079
+    /// rather than 1062; none more wrong and trusted.
     #[cold]
     #[inline(never)]
     pub(super) fn reopen_params(&mut self, afresh: bool) {

@@ -163,10 +163,11 @@ impl SwingWindow {
 
     /// The widest swing since the start: the largest half range of
     /// `theta` over the last one to two windows at any measurement so far
-    /// (`None` before any angle was measured). Not NaN: a NaN angle never
-    /// reaches the window (the filter refuses it first).
+    /// (`None` before any angle was measured; kept across
+    /// [`SwingWindow::keep_widest`]). Not NaN: a NaN angle never reaches
+    /// the window (the filter refuses it first).
     pub fn widest(&self) -> Option<f32> {
-        (self.n > 0).then_some(self.widest)
+        (self.n > 0 || self.widest > 0.0).then_some(self.widest)
     }
 
     /// The swing and its unevenness from one merge of the two blocks (the
@@ -255,6 +256,31 @@ mod tests {
         // The widest remembers the big one.
         let widest = w.widest().unwrap();
         assert!((widest - 1.0).abs() < 1e-3, "{widest}");
+    }
+
+    /// Read afresh keeping the widest: the widest is still reported
+    /// before the next angle, the recent swing and the unevenness start
+    /// again, and a smaller swing after it does not lower the widest.
+    #[test]
+    fn keep_widest_forgets_all_but_the_widest() {
+        let mut w = SwingWindow::default();
+        for k in 0..2 * WINDOW {
+            let ph = k as f32 * 0.5;
+            w.push(0.1 + 0.4 * libm::cosf(ph), -0.4 * libm::sinf(ph), 0.0);
+        }
+        assert!(w.most_uneven().is_some());
+        let kept = w.keep_widest();
+        let widest = kept.widest().unwrap();
+        assert!((widest - 0.4).abs() < 1e-3, "{widest}");
+        assert_eq!(kept.recent(), None);
+        assert_eq!(kept.most_uneven(), None);
+        let mut w = kept;
+        for k in 0..2 * WINDOW {
+            let ph = k as f32 * 0.5;
+            w.push(0.05 * libm::cosf(ph), -0.05 * libm::sinf(ph), 0.0);
+        }
+        assert!((w.widest().unwrap() - 0.4).abs() < 1e-3);
+        assert!((w.recent().unwrap() - 0.05).abs() < 1e-3);
     }
 
     /// The widest swing is the largest recent swing at any measurement:

@@ -34,7 +34,7 @@ pub struct Args {
     /// Training iterations of each model (the two train at once; default
     /// 1500, a 40 s recording near a minute on two cores); with
     /// `--weights`, of the fine-tuning (default 6000; a blob trained anew
-    /// runs three times as many, default 4500).
+    /// runs 4500 unless asked, else three times the iterations asked).
     #[arg(long)]
     iterations: Option<usize>,
     /// Seed of both trainings.
@@ -65,7 +65,7 @@ pub fn run(a: Args) -> Result<()> {
             (None, None) => closeloop::ITERATIONS,
         },
         anew_iterations: a.iterations.map_or(closeloop::rig::ANEW_ITERATIONS, |n| {
-            closeloop::rig::ANEW_FACTOR * n
+            n.saturating_mul(closeloop::rig::ANEW_FACTOR)
         }),
         seed: a.seed,
         quiet: a.quiet,
