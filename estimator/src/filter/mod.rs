@@ -625,6 +625,12 @@ impl<'m> Estimator<'m> {
         Ok(self.output(correction))
     }
 
+    /// Whether the parameters were reopened since the start (an offset
+    /// found): a burn-in was set again.
+    fn reopened(&self) -> bool {
+        self.burn_until > 0
+    }
+
     /// The smallest swing read as trusted: the blob's calibrated one; for
     /// a swing never that wide, once the decay has read
     /// [`decay::LONG_HALVES`] half swings, the smallest it reads
@@ -659,7 +665,7 @@ impl<'m> Estimator<'m> {
         // from the recent one (which lags): nothing the small swing told
         // the filter gets into the snapshot; nor does an estimate still
         // settling a window after its parameters were reopened.
-        let settled_again = self.burn_until == 0
+        let settled_again = !self.reopened()
             || self.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
         if self.swing.push(theta, rate, min_swing) >= self.swing_floor() && settled_again {
             self.held = Some((*tail(&self.mean), self.param_std, self.period.omega_squared()));

@@ -220,7 +220,7 @@ impl Estimator<'_> {
             corrections: self.spread.n,
             afresh: self.afresh_until > 0 && self.t < self.afresh_until,
             // A NaN deviation is vague too.
-            vague: self.burn_until > 0
+            vague: self.reopened()
                 && match (params.first(), param_std.first()) {
                     (Some(p), Some(std)) => {
                         std.is_nan() || *std > trust::VERDICT_REL_STD * libm::fabsf(*p)
