@@ -171,10 +171,11 @@ pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> 
     let done: Option<RunState> = std::fs::read_to_string(&paths.state)
         .ok()
         .and_then(|s| serde_json::from_str(&s).ok());
+    // The text as training writes it: parsed back, a float may differ in
+    // its last bit (serde_json parses without exact round trips).
     let same: bool = std::fs::read_to_string(&paths.config)
         .ok()
-        .and_then(|s| serde_json::from_str::<TrainConfig>(&s).ok())
-        .is_some_and(|c| c == cfg);
+        .is_some_and(|s| serde_json::to_string_pretty(&cfg).is_ok_and(|c| c == s));
     match done {
         Some(s) if same && s.iteration >= cfg.iterations => {}
         Some(_) if same => {
