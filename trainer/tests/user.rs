@@ -560,3 +560,67 @@ fn the_physics_peer_reads_lab_recordings_beside_the_blob() {
         "{v}"
     );
 }
+
+/// `estimate --follow FILE` on a file no estimate can come from (a flat
+/// line: nothing swings) ends in an error naming the file, not in exit 0
+/// with nothing printed; after a preamble of 20,000 lines the header is
+/// still found and the estimate printed.
+#[test]
+fn follow_ends_in_an_error_where_nothing_is_estimated() {
+    let dir = tempfile::tempdir().unwrap();
+    let flat = dir.path().join("flat.csv");
+    let mut text = String::from("t,theta\n");
+    for k in 0..500 {
+        text.push_str(&format!("{:.2},0.1\n", f64::from(k) * 0.02));
+    }
+    std::fs::write(&flat, &text).unwrap();
+    let weights = root().join("weights/rig.kkf");
+    let out = koopman()
+        .args(["estimate", "--g", "9.81", "--idle", "1", "--weights"])
+        .arg(&weights)
+        .arg("--follow")
+        .arg(&flat)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("flat.csv") && err.contains("no measurement the filter could take"),
+        "{err}"
+    );
+    let long = dir.path().join("long.csv");
+    let mut text: String = (0..20_000)
+        .map(|k| format!("# logger line {k}\n"))
+        .collect();
+    text.push_str("t,theta\n");
+    for k in 0..1500 {
+        let t = f64::from(k) * 0.02;
+        text.push_str(&format!("{t:.2},{:.4}\n", 0.3 * (4.4 * t).cos()));
+    }
+    std::fs::write(&long, &text).unwrap();
+    let out = koopman()
+        .args([
+            "estimate",
+            "--g",
+            "9.81",
+            "--idle",
+            "1",
+            "--json",
+            "--weights",
+        ])
+        .arg(&weights)
+        .arg("--follow")
+        .arg(&long)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let last: serde_json::Value = serde_json::from_str(
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .lines()
+            .last()
+            .unwrap(),
+    )
+    .unwrap();
+    assert_eq!(last["steps"].as_u64(), Some(750), "{last}");
+}

@@ -49,7 +49,7 @@ pub fn run(a: &Args, source: &Path, model: &Model<'_>, fresh: &Estimator<'_>) ->
     spawn_reader(source, a.idle, tx)?;
     let report = Report::of(a, body, true);
     let mut follow = Follow {
-        stream: Stream::new(opts),
+        stream: Stream::new(opts).named(source),
         est: None,
         run: Run::default(),
         printed: 0,
@@ -77,6 +77,12 @@ pub fn run(a: &Args, source: &Path, model: &Model<'_>, fresh: &Estimator<'_>) ->
             }
         }
         if let Some(why) = end {
+            anyhow::ensure!(
+                follow.measured() > 0,
+                "{}: ended ({why}) with no measurement the filter could take; `koopman import {}` says why",
+                source.display(),
+                source.display()
+            );
             if follow.printed != follow.measured() {
                 follow.print(&report, a.json)?;
             }

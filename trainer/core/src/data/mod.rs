@@ -178,20 +178,34 @@ pub fn read_recordings(
     Ok(out)
 }
 
+/// Longest gap in a rollout's time stamps, s, that a filter predicts
+/// across: ten minutes, 15,000 steps of 0.04 s (a dropped frame or a
+/// logger's burst lasts well under a second). A longer one is a clock
+/// reset or two recordings in one file, and predicting across it would
+/// take as long as the gap's steps.
+pub const GAP_MAX_S: f64 = 600.0;
+
 /// For each row after the first, how many model steps of `dt` lie between
 /// it and the row before: 1 on an unbroken grid, `k` after a gap of `k - 1`
 /// missing samples (each stamp within 1% of `dt` of the grid). An error
-/// says where the stamps are neither.
+/// says where the stamps are neither, or where a gap is over
+/// [`GAP_MAX_S`].
 pub fn model_steps(t: &[f64], dt: f64) -> Result<Vec<u32>, String> {
     t.windows(2)
         .map(|w| {
-            let k = ((w[1] - w[0]) / dt).round();
-            if k >= 1.0 && k < f64::from(u32::MAX) && (w[1] - w[0] - k * dt).abs() <= 0.01 * dt {
+            let gap = w[1] - w[0];
+            if gap > GAP_MAX_S {
+                return Err(format!(
+                    "{gap} s between t = {} and t = {}: a gap over {GAP_MAX_S} s (a clock reset, or two recordings in one file); estimate each side on its own (`koopman import --start S --duration D`)",
+                    w[0], w[1]
+                ));
+            }
+            let k = (gap / dt).round();
+            if k >= 1.0 && (gap - k * dt).abs() <= 0.01 * dt {
                 Ok(k as u32)
             } else {
                 Err(format!(
-                    "{} s between t = {} and t = {}: neither the model's {dt} s nor a gap of whole steps (uneven time stamps): resample with `koopman import --dt {dt}`",
-                    w[1] - w[0],
+                    "{gap} s between t = {} and t = {}: neither the model's {dt} s nor a gap of whole steps (uneven time stamps): resample with `koopman import --dt {dt}`",
                     w[0],
                     w[1]
                 ))

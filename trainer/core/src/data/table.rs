@@ -133,6 +133,27 @@ pub(crate) fn is_data(fields: &[String], sep: u8) -> bool {
             .all(|f| f.is_empty() || parse_number(f, sep).is_some())
 }
 
+/// Whether a line, split at its own separator, is a data row
+/// ([`is_data`]), as [`Table::parse`] finds the first.
+pub(crate) fn line_is_data(line: &str) -> bool {
+    let sep = separator(line);
+    fields(line, sep)
+        .ok()
+        .flatten()
+        .is_some_and(|f| is_data(&f, sep))
+}
+
+/// Whether `fields` is a data row with values missing: each field a
+/// number, `NaN` or empty, at least one a finite number.
+fn is_partial_data(fields: &[String], sep: u8) -> bool {
+    fields
+        .iter()
+        .any(|f| parse_number(f, sep).is_some_and(f64::is_finite))
+        && fields
+            .iter()
+            .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+}
+
 /// Bytes as text: UTF-8, else Latin-1 (a Windows tool's `°`).
 pub fn decode(bytes: Vec<u8>) -> String {
     String::from_utf8(bytes)
@@ -168,6 +189,15 @@ impl Table {
             if let Some(f) = fields(l, sep).map_err(|e| unreadable(line, e))?
                 && is_data(&f, sep)
             {
+                // Rows just above it no wider, values missing (a first
+                // frame the tracker lost), are data too, not its header.
+                let mut k = k;
+                while let Some(&(_, above)) = k.checked_sub(1).and_then(|j| lines.get(j)) {
+                    match fields(above, sep) {
+                        Ok(Some(g)) if g.len() <= f.len() && is_partial_data(&g, sep) => k -= 1,
+                        _ => break,
+                    }
+                }
                 first_data = Some((k, sep, f.len()));
                 break;
             }
@@ -292,6 +322,19 @@ mod tests {
 
     /// A byte-order mark, CRLF and decimal commas with tab or semicolon
     /// separators; a comma-separated file keeps its commas as separators.
+    /// A first frame with its values missing (a tracker that lost the
+    /// bob, tabs trimmed off) is a row, not the header, which stays the
+    /// line above it.
+    #[test]
+    fn a_first_row_with_values_missing_keeps_the_header() {
+        let text = "mass_A\nt\tx\ty\n0.0\t\t\n0.02\t728.3\t613.2\n0.04\t727.3\t612.9\n";
+        let t = Table::parse(Path::new("tracker.txt"), text).unwrap();
+        assert_eq!(t.header, ["t", "x", "y"]);
+        assert_eq!(t.preamble, ["mass_A"]);
+        assert_eq!(t.rows.len(), 3);
+        assert_eq!(t.rows[0].line, 3);
+    }
+
     #[test]
     fn a_bom_crlf_and_decimal_commas() {
         let text = "\u{feff}Time (s)\tAngle (rad)\r\n0,0000\t-1,25\r\n\r\n0,0200\t3\r\n";

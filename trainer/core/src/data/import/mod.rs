@@ -160,7 +160,17 @@ pub struct Columns {
 }
 
 /// Header names taken as the time column.
-pub const TIME_NAMES: [&str; 4] = ["t", "time", "timestamp", "time_s"];
+/// A unit in the name is read as the time's (`time_scale`).
+pub const TIME_NAMES: [&str; 8] = [
+    "t",
+    "time",
+    "timestamp",
+    "time_s",
+    "time_ms",
+    "timestamp_ms",
+    "time_us",
+    "timestamp_us",
+];
 /// Header names taken as the angle column.
 pub const ANGLE_NAMES: [&str; 3] = ["theta", "angle", "phi"];
 /// Header names taken as the rate column.
@@ -552,6 +562,42 @@ mod tests {
             let want = 0.5 * (3.0 * at).cos();
             assert!((x[0] - want).abs() < 0.01, "t = {at}: {} vs {want}", x[0]);
         }
+        // One row a million seconds on, its angle unchanged (a clock's
+        // straggler): a gap, not a count standing still, and the part
+        // before it is all the rollout holds.
+        let mut t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.02).collect();
+        let mut theta = swing(&t);
+        t.push(1e6);
+        theta.push(*theta.last().unwrap());
+        let r = to_rollout(
+            &Recording {
+                theta,
+                t,
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap();
+        assert!(*r.t.last().unwrap() < 20.0, "{:?}", r.t.last());
+        // Time stamps a second apart or more (milliseconds read as
+        // seconds): an error that says so.
+        let t: Vec<f64> = (0..200).map(|k| k as f64 * 20.0).collect();
+        let e = to_rollout(
+            &Recording {
+                theta: swing(&t),
+                t,
+                theta_dot: None,
+            },
+            1,
+            &opts,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("milliseconds"), "{e}");
+        // A gap over GAP_MAX_S is not predicted across.
+        let e = super::super::model_steps(&[0.0, 0.04, 0.04 + 1e6], 0.04).unwrap_err();
+        assert!(e.contains("a gap over 600 s"), "{e}");
         let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         // A flat line.
         let e = to_rollout(

@@ -68,6 +68,39 @@ fn header_unit(name: &str) -> Option<(Unit, bool)> {
     Some((unit, per_second))
 }
 
+/// Tracker's name of an angle column (its protractor's, or a track's
+/// polar angle about the origin).
+const TRACKER_ANGLE: &str = "θ";
+/// Tracker's name of that angle's rate.
+const TRACKER_RATE: &str = "ω";
+
+/// Largest median of Tracker's `θ`, rad, that is a swing about the
+/// hanging direction (an offset of up to 0.1 rad, far less than this):
+/// its polar angle about a pivot set as the origin centres on -pi/2.
+pub const CENTRE_MAX: f64 = 0.5;
+
+/// Seconds per unit of a time column named `name`: its unit in brackets
+/// or parentheses (`Time (ms)`, `t [us]`) or as a suffix (`time_ms`,
+/// `timestamp_us`); seconds where it names none.
+pub(crate) fn time_scale(name: &str) -> f64 {
+    let lower = name.trim().trim_matches('"').to_lowercase();
+    let unit = match lower.rfind(['(', '[']) {
+        Some(open) => {
+            let inner = &lower[open + 1..];
+            inner[..inner.find([')', ']']).unwrap_or(inner.len())]
+                .trim()
+                .to_string()
+        }
+        None => lower.rsplit('_').next().unwrap_or("").to_string(),
+    };
+    match unit.as_str() {
+        "ms" | "msec" | "millisecond" | "milliseconds" => 1e-3,
+        "us" | "µs" | "μs" | "usec" | "microsecond" | "microseconds" => 1e-6,
+        "min" | "minute" | "minutes" => 60.0,
+        _ => 1.0,
+    }
+}
+
 /// Where a unit was taken from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum UnitSource {
@@ -570,6 +603,15 @@ fn holds(table: &Table, opts: &ImportOptions, time: Option<usize>) -> Result<Hol
     if let Some(k) = rate {
         return Ok(Holds::Rate(vec![k]));
     }
+    // Tracker's `θ` (a protractor's angle, or a track's polar angle
+    // about the origin), where no position gives the angle about a
+    // fitted pivot instead.
+    let position =
+        find(table, None, &["x"], "x")?.is_some() && find(table, None, &["y"], "y")?.is_some();
+    if let (Some(angle), false) = (find(table, None, &[TRACKER_ANGLE], "angle")?, position) {
+        let rate = find(table, None, &[TRACKER_RATE], "rate")?;
+        return Ok(Holds::Angle { angle, rate });
+    }
     let axes: Vec<usize> = (0..table.header.len())
         .filter(|&k| Some(k) != time && rate_axis(&table.header[k]).is_some())
         .collect();
@@ -691,10 +733,21 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     let recording = match holds {
         Holds::Angle { angle, rate } => {
             angle_layout(table, opts, angle, rate, &mut layout);
-            let theta = values[0]
+            let theta: Vec<f64> = values[0]
                 .iter()
                 .map(|v| v * scale(layout.angle_unit.0))
                 .collect();
+            let centre = median(&theta);
+            if bare(&header(angle)) == TRACKER_ANGLE && centre.abs() > CENTRE_MAX {
+                return Err(table.error(
+                    0,
+                    format!(
+                        "the angle `{}` centres on {centre:.2} rad ({:.0} degrees), not on the hanging direction: an angle about another axis (Tracker's θ is the polar angle about the origin)? Export the bob's x and y (the pivot is then fitted), or an angle from the vertical",
+                        header(angle),
+                        centre.to_degrees()
+                    ),
+                ));
+            }
             let rate_scale = scale(layout.rate_unit.0);
             let theta_dot = rate.map(|_| values[1].iter().map(|v| v * rate_scale).collect());
             Recording {
@@ -747,6 +800,13 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
         }
     };
     Ok((recording, layout))
+}
+
+/// The median of `v` (0 for none).
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// The angle's and the rate's columns and units into `layout`.
@@ -846,7 +906,9 @@ pub(crate) fn read_row(
     prev: Option<f64>,
 ) -> Result<RowRead, CsvError> {
     let time = match (ti, rate) {
-        (Some(k), _) => table.optional_number(row, k, "time")?,
+        (Some(k), _) => table
+            .optional_number(row, k, "time")?
+            .map(|v| v * time_scale(&table.header[k])),
         (None, Some(r)) => Some(place as f64 / r),
         (None, None) => None,
     };
@@ -1051,6 +1113,59 @@ mod tests {
         )
         .unwrap();
         assert_eq!((runs[0].0.t.len(), runs[0].1.repeated), (3, 1));
+    }
+
+    /// A time column's unit comes from its header: milliseconds and
+    /// microseconds (in brackets or as a suffix) are read as seconds;
+    /// `Time (s) Run #1` and a bare `t` are seconds already.
+    #[test]
+    fn a_time_in_milliseconds_is_read_in_seconds() {
+        assert_eq!(time_scale("Time (ms)"), 1e-3);
+        assert_eq!(time_scale("timestamp_us"), 1e-6);
+        assert_eq!(time_scale("t [µs]"), 1e-6);
+        assert_eq!(time_scale("Time (s) Run #1"), 1.0);
+        assert_eq!(time_scale("t"), 1.0);
+        assert_eq!(time_scale("time_s"), 1.0);
+        let mut text = String::from("time (ms),theta\n");
+        for k in 0..50 {
+            text.push_str(&format!(
+                "{},{}\n",
+                k * 20,
+                0.3 * (0.06 * f64::from(k)).cos()
+            ));
+        }
+        let (rec, _) = parse_run(
+            &Table::parse(Path::new("ms.csv"), &text).unwrap(),
+            &ImportOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(rec.t[1], 0.02);
+        assert_eq!(*rec.t.last().unwrap(), 0.98);
+    }
+
+    /// Tracker's `θ` is read as the angle where no position is given, and
+    /// refused with a reason where it centres far from the hanging
+    /// direction (a polar angle about a pivot set as the origin: -pi/2).
+    #[test]
+    fn trackers_theta_is_an_angle_about_the_hanging_direction() {
+        let table = |centre: f64| {
+            let mut text = String::from("mass_A\nt\tθ\n");
+            for k in 0..50 {
+                let t = 0.04 * f64::from(k);
+                text.push_str(&format!("{t}\t{}\n", centre + 0.3 * (4.0 * t).cos()));
+            }
+            Table::parse(Path::new("tracker.txt"), &text).unwrap()
+        };
+        let (rec, layout) = parse_run(&table(0.02), &ImportOptions::default()).unwrap();
+        assert_eq!(layout.angle, "θ");
+        assert!((rec.theta[0] - 0.32).abs() < 1e-12);
+        let e = parse_run(
+            &table(-std::f64::consts::FRAC_PI_2),
+            &ImportOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("centres on -1.") && e.contains("x and y"), "{e}");
     }
 
     /// Odd files in every layout end in a recording or an error, never a

@@ -19,14 +19,32 @@ pub(super) fn largest_step(t: &[f64]) -> f64 {
     t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max)
 }
 
+/// Longest step, s, across which an angle that stood still (at most one
+/// count of an encoder logged per count, which writes no row while its
+/// count stands) is taken as a swing's turn rather than a gap: half the
+/// period of a 4 m string, longer than any turn of the rigs this is for.
+pub const STALL_MAX_S: f64 = 2.0;
+
+/// Largest median step between time stamps, s, a pendulum's recording
+/// can have: a 0.1 m string swings in 0.63 s, and sampling slower than
+/// this sees nothing of it. A time column in milliseconds or
+/// microseconds read as seconds lands far above it.
+pub const MEDIAN_STEP_MAX_S: f64 = 0.5;
+
 /// The parts of `rec` between its gaps (see
 /// [`to_rollout`](super::to_rollout)), each of 3 samples or more (shorter
 /// ones dropped), `step` being the median step and `dt` the model's
-/// interval; an error when none is left.
+/// interval; an error when none is left, or when the median step is over
+/// [`MEDIAN_STEP_MAX_S`].
 pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<Range<usize>>> {
+    anyhow::ensure!(
+        step <= MEDIAN_STEP_MAX_S,
+        "the time stamps are {step} s apart (their median): too slow to see a pendulum swing; if the time column is in milliseconds or microseconds, name the unit in its header (`time (ms)`) or convert it to seconds"
+    );
     // A long step is no gap where the angle moved by at most one count
     // across it: an encoder logged per count writes no row while the
-    // count stands still, as at the turning points of a small swing.
+    // count stands still, as at the turning points of a small swing. No
+    // turn lasts over STALL_MAX_S.
     let count = rec
         .theta
         .windows(2)
@@ -34,8 +52,9 @@ pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<R
         .filter(|d| *d > 0.0)
         .fold(f64::INFINITY, f64::min);
     let gap = |k: usize| {
-        rec.t[k] - rec.t[k - 1] > (5.0 * step).max(dt)
-            && (rec.theta[k] - rec.theta[k - 1]).abs() > 1.5 * count
+        let dt_k = rec.t[k] - rec.t[k - 1];
+        dt_k > (5.0 * step).max(dt)
+            && (dt_k > STALL_MAX_S || (rec.theta[k] - rec.theta[k - 1]).abs() > 1.5 * count)
     };
     let mut parts: Vec<Range<usize>> = Vec::new();
     let mut from = 0;
@@ -91,24 +110,27 @@ pub(super) fn onto_grid(
     let end = opts.duration.map_or(last, |d| last.min(t0 + d));
     anyhow::ensure!(end > t0, "nothing left after trimming {} s", opts.start);
     let n = ((end - t0) / opts.dt + 1e-9).floor() as usize + 1;
-    let mut t = Vec::with_capacity(n);
-    let mut xs = Vec::with_capacity(n);
+    let mut t = Vec::new();
+    let mut xs = Vec::new();
     let mut interpolated = false;
-    // From the first grid point the parts reach (a stream's part starts
-    // late on its grid).
-    let from = ((parts[0].t[0] - t0) / opts.dt - 1e-6).ceil().max(0.0) as usize;
-    for k in from..n {
-        let at = t0 + k as f64 * opts.dt;
-        // The part this grid point lies in (none: it is inside a gap).
-        let Some(p) = parts
-            .iter()
-            .find(|p| at >= p.t[0] - 1e-9 && at <= p.t[p.t.len() - 1] + 1e-9)
-        else {
+    // Each part's own grid points (none inside a gap, however long), up
+    // to the trimmed end.
+    for p in parts {
+        let (Some(&a), Some(&b)) = (p.t.first(), p.t.last()) else {
             continue;
         };
-        t.push(k as f64 * opts.dt);
-        xs.push([interp(&p.t, &p.theta, at), interp(&p.t, &p.rate, at)]);
-        interpolated |= !on_stamp(&p.t, at, 1e-3 * opts.dt);
+        let first = ((a - t0) / opts.dt - 1e-6).ceil().max(0.0) as usize;
+        let last = (((b - t0) / opts.dt + 1e-6).floor().max(-1.0) + 1.0) as usize;
+        for k in first..last.min(n) {
+            let at = t0 + k as f64 * opts.dt;
+            if at < a - 1e-9 || at > b + 1e-9 || t.last().is_some_and(|&l| k as f64 * opts.dt <= l)
+            {
+                continue;
+            }
+            t.push(k as f64 * opts.dt);
+            xs.push([interp(&p.t, &p.theta, at), interp(&p.t, &p.rate, at)]);
+            interpolated |= !on_stamp(&p.t, at, 1e-3 * opts.dt);
+        }
     }
     anyhow::ensure!(
         xs.len() >= 2,

@@ -24,7 +24,7 @@ use anyhow::Result;
 use super::read::{Layout, RowRead, StreamColumns, read_row, stream_columns};
 use super::{ImportOptions, Recording, rollout_on_grid, rough_period};
 use crate::data::SourceMeta;
-use crate::data::table::{Table, is_data};
+use crate::data::table::{Table, is_data, line_is_data};
 
 /// Rows read between imports.
 pub const BATCH: usize = 64;
@@ -37,6 +37,8 @@ pub const PERIODS_FOR_WINDOW: f64 = 4.0;
 /// A recording read line by line (see the module docs).
 pub struct Stream {
     opts: ImportOptions,
+    /// What the lines come from, as errors name it (`-`: standard input).
+    name: std::path::PathBuf,
     /// The lines before the first data row, as the file has them.
     head: String,
     /// Lines read.
@@ -65,6 +67,7 @@ impl Stream {
     pub fn new(opts: ImportOptions) -> Self {
         Stream {
             opts,
+            name: "-".into(),
             head: String::new(),
             lines: 0,
             table: None,
@@ -80,6 +83,14 @@ impl Stream {
             rows: 0,
             skipped: 0,
             source: None,
+        }
+    }
+
+    /// The same, its errors naming `name` (the file followed).
+    pub fn named(self, name: &std::path::Path) -> Self {
+        Stream {
+            name: name.to_path_buf(),
+            ..self
         }
     }
 
@@ -107,7 +118,13 @@ impl Stream {
         let Some(table) = &self.table else {
             self.head.push_str(text_line);
             self.head.push('\n');
-            return self.try_header();
+            // The head is parsed again only at a line that may be the
+            // first data row (a long preamble stays linear).
+            return if line_is_data(text_line) {
+                self.try_header()
+            } else {
+                Ok(Vec::new())
+            };
         };
         if let Some(row) = table.row(self.lines, text_line)? {
             self.take(&row)?;
@@ -130,7 +147,7 @@ impl Stream {
 
     /// The header and the first rows, once a data row has come.
     fn try_header(&mut self) -> Result<Vec<(f64, [f64; 2])>> {
-        let table = Table::parse(std::path::Path::new("-"), &self.head)?;
+        let table = Table::parse(&self.name, &self.head)?;
         let Some(first) = table.rows.first() else {
             return Ok(Vec::new());
         };
