@@ -71,19 +71,23 @@ pub struct Table {
     pub named: bool,
     /// The data rows after the header.
     pub rows: Vec<Row>,
-    /// The separator: `,`, tab or `;`.
+    /// The separator: `,`, tab, `;` or a space (runs of spaces).
     pub separator: u8,
 }
 
 /// A line's separator: a tab where it has one, else a semicolon where it
-/// has one, else a comma (a decimal comma goes with a tab or a semicolon).
+/// has one, else a comma where it has one or no space, else a space
+/// (columns aligned by runs of spaces; a decimal comma goes with a tab or
+/// a semicolon).
 pub fn separator(line: &str) -> u8 {
     if line.contains('\t') {
         b'\t'
     } else if line.contains(';') {
         b';'
-    } else {
+    } else if line.contains(',') || !line.trim().contains(' ') {
         b','
+    } else {
+        b' '
     }
 }
 
@@ -92,6 +96,12 @@ pub fn separator(line: &str) -> u8 {
 /// `None` for an empty line.
 fn fields(text_line: &str, sep: u8) -> Result<Option<Vec<String>>, csv::Error> {
     let trimmed = text_line.trim();
+    if sep == b' ' {
+        // Columns aligned by runs of spaces.
+        return Ok(
+            (!trimmed.is_empty()).then(|| trimmed.split_whitespace().map(str::to_string).collect())
+        );
+    }
     let inner = trimmed
         .strip_prefix('[')
         .and_then(|l| l.strip_suffix(']'))
@@ -156,8 +166,38 @@ fn is_partial_data(fields: &[String], sep: u8) -> bool {
 
 /// Bytes as text: UTF-8, else Latin-1 (a Windows tool's `°`).
 pub fn decode(bytes: Vec<u8>) -> String {
+    // UTF-16 with its byte-order mark (Excel's "Unicode text").
+    let utf16 = |le: bool| {
+        let units: Vec<u16> = bytes
+            .get(2..)
+            .unwrap_or_default()
+            .chunks_exact(2)
+            .map(|c| {
+                let pair = [c[0], c[1]];
+                if le {
+                    u16::from_le_bytes(pair)
+                } else {
+                    u16::from_be_bytes(pair)
+                }
+            })
+            .collect();
+        String::from_utf16_lossy(&units)
+    };
+    match bytes.get(..2) {
+        Some([0xFF, 0xFE]) => return utf16(true),
+        Some([0xFE, 0xFF]) => return utf16(false),
+        _ => {}
+    }
     String::from_utf8(bytes)
         .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect())
+}
+
+/// A field as an error quotes it: at most 40 characters.
+fn quoted(field: &str) -> String {
+    match field.char_indices().nth(40) {
+        Some((at, _)) => format!("{:?}...", &field[..at]),
+        None => format!("{field:?}"),
+    }
 }
 
 impl Table {
@@ -171,6 +211,14 @@ impl Table {
     /// is preamble (a logger's messages).
     pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        // Old Mac line ends (a carriage return alone).
+        let cr_only;
+        let text = if text.contains('\r') && !text.contains('\n') {
+            cr_only = text.replace('\r', "\n");
+            cr_only.as_str()
+        } else {
+            text
+        };
         let lines: Vec<(usize, &str)> = text
             .lines()
             .enumerate()
@@ -277,7 +325,7 @@ impl Table {
             return Ok(None);
         };
         let v = parse_number(f, self.separator)
-            .ok_or_else(|| self.error(row.line, format!("{what} {f:?} is not a number")))?;
+            .ok_or_else(|| self.error(row.line, format!("{what} {} is not a number", quoted(f))))?;
         if v.is_infinite() {
             return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
         }
@@ -333,6 +381,41 @@ mod tests {
         assert_eq!(t.preamble, ["mass_A"]);
         assert_eq!(t.rows.len(), 3);
         assert_eq!(t.rows[0].line, 3);
+    }
+
+    /// UTF-16 with its mark (Excel's "Unicode text", tab-separated) and
+    /// a carriage return alone as the line end are read; a long cell where
+    /// a number belongs is quoted short in the error.
+    #[test]
+    fn utf_16_old_mac_line_ends_and_a_long_cell() {
+        let text = "Time (s)\tAngle (rad)\r\n0\t0.3\r\n0.02\t0.29\r\n";
+        let mut bytes = vec![0xFF, 0xFE];
+        bytes.extend(text.encode_utf16().flat_map(u16::to_le_bytes));
+        let t = Table::parse(Path::new("u.txt"), &decode(bytes)).unwrap();
+        assert_eq!(t.header, ["Time (s)", "Angle (rad)"]);
+        assert_eq!(t.rows.len(), 2);
+        let t = Table::parse(Path::new("m.csv"), "t,theta\r0,0.3\r0.02,0.29\r").unwrap();
+        assert_eq!((t.header.len(), t.rows.len()), (2, 2));
+        let long = "x".repeat(100_000);
+        let t = Table::parse(
+            Path::new("l.csv"),
+            &format!("t,theta\n0,0.3\n0.02,{long}\n"),
+        )
+        .unwrap();
+        let e = t.number(&t.rows[1], 1, "theta").unwrap_err().to_string();
+        assert!(
+            e.len() < 200 && e.contains("..."),
+            "{}",
+            &e[..e.len().min(300)]
+        );
+    }
+
+    /// Columns aligned by runs of spaces are read as columns.
+    #[test]
+    fn columns_aligned_by_spaces() {
+        let t = Table::parse(Path::new("s.txt"), "t   theta\n0.00   0.30\n0.02  0.29\n").unwrap();
+        assert_eq!(t.header, ["t", "theta"]);
+        assert_eq!(t.rows[1].fields, ["0.02", "0.29"]);
     }
 
     #[test]

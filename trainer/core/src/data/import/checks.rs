@@ -5,6 +5,10 @@ use anyhow::Result;
 
 use super::{ImportOptions, Recording, Unit};
 
+/// Shortest output interval, s: a 10 kHz grid, finer than any source
+/// (a finer one only fills memory with interpolated points).
+pub const DT_MIN_S: f64 = 1e-4;
+
 /// Least span of angles read in radians, rad: a smaller swing is too
 /// small to estimate from.
 pub const MIN_SPAN_RADIANS: f64 = 0.02;
@@ -66,8 +70,8 @@ pub fn check_recording(rec: &Recording, unit: Unit) -> Result<()> {
 pub(super) fn check_import(rec: &Recording, opts: &ImportOptions) -> Result<()> {
     anyhow::ensure!(rec.t.len() >= 3, "a recording needs at least 3 samples");
     anyhow::ensure!(
-        opts.dt > 0.0 && opts.dt.is_finite(),
-        "the output interval {} s is not usable",
+        opts.dt >= DT_MIN_S && opts.dt.is_finite(),
+        "the output interval {} s is not usable (at least {DT_MIN_S} s; the blobs' is 0.04)",
         opts.dt
     );
     check_span(&rec.theta, opts.unit)

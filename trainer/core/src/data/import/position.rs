@@ -2,7 +2,8 @@
 //! bob) about the pivot.
 //!
 //! The pivot is, in this order: the one given (`--pivot X,Y`); the origin,
-//! where the bob keeps its distance from it within [`ORIGIN_SPREAD`] (a
+//! where the bob keeps its distance from it within [`ORIGIN_SPREAD`] and
+//! within [`ORIGIN_FIT_RATIO`] times its spread about the fitted arc (a
 //! tracker's axes set on the pivot); else the centre of the circle fitted
 //! to the track by least squares (Kasa's algebraic fit, `x^2 + y^2 + D x +
 //! E y + F = 0` linear in `D, E, F`, refitted once without the points
@@ -16,6 +17,10 @@ use nalgebra::{Matrix3, Vector3};
 /// The bob's largest spread of distance from the origin, as a fraction
 /// of that distance, for the origin to be taken as the pivot.
 pub const ORIGIN_SPREAD: f64 = 0.02;
+/// The most the bob's spread of distance from the origin may be, as a
+/// multiple of its spread about the arc fitted to the track, for the
+/// origin to be taken as the pivot.
+pub const ORIGIN_FIT_RATIO: f64 = 2.0;
 /// The least arc, rad, a fitted pivot is trusted on.
 pub const MIN_ARC: f64 = 0.1;
 
@@ -52,10 +57,19 @@ pub fn about_pivot(x: &[f64], y: &[f64], given: Option<[f64; 2]>) -> Result<Pivo
         Some(p) => (p, PivotFrom::Given),
         None => {
             let (r, s) = distance(x, y, [0.0, 0.0], None);
-            if r > 0.0 && s <= ORIGIN_SPREAD * r {
-                ([0.0, 0.0], PivotFrom::Origin)
-            } else {
-                (fit_arc(x, y)?, PivotFrom::Fitted)
+            let origin = r > 0.0 && s <= ORIGIN_SPREAD * r;
+            match fit_arc(x, y) {
+                // The origin, where the bob keeps its distance from it
+                // about as well as from the arc fitted to it: a bob far
+                // from an origin elsewhere (an image's corner) on a small
+                // arc keeps within 2% of that distance, but not within
+                // the arc's own spread.
+                Ok(c) if !origin || s > ORIGIN_FIT_RATIO * distance(x, y, c, None).1 => {
+                    (c, PivotFrom::Fitted)
+                }
+                Ok(_) => ([0.0, 0.0], PivotFrom::Origin),
+                Err(_) if origin => ([0.0, 0.0], PivotFrom::Origin),
+                Err(e) => return Err(e),
             }
         }
     };
@@ -223,6 +237,26 @@ mod tests {
             got.pivot
         );
         assert!((got.theta[10] - truth[10]).abs() < 0.01);
+        // A short string in pixels, its pivot at (640, 900), an image's
+        // corner the origin: the bob 1,000 px from it keeps within 2% of
+        // that distance, but far outside the arc's own spread.
+        let (xs, ys): (Vec<f64>, Vec<f64>) = truth
+            .iter()
+            .enumerate()
+            .map(|(k, a)| {
+                (
+                    640.0 + 62.0 * (1.1 * a).sin() + 400.0 * noise(k),
+                    900.0 + 62.0 * (1.1 * a).cos() + 400.0 * noise(k + 3),
+                )
+            })
+            .unzip();
+        let got = about_pivot(&xs, &ys, None).unwrap();
+        assert_eq!(got.from, PivotFrom::Fitted);
+        assert!(
+            (got.pivot[0] - 640.0).abs() < 2.0 && (got.pivot[1] - 900.0).abs() < 2.0,
+            "{:?}",
+            got.pivot
+        );
         // Given: taken as it is.
         let got = about_pivot(&x, &y, Some([px, py])).unwrap();
         assert_eq!(got.from, PivotFrom::Given);

@@ -51,7 +51,10 @@ pub fn integrate(t: &[f64], axes: &[Vec<f64>], names: &[String]) -> Result<Integ
     let mean = w.iter().sum::<f64>() / w.len() as f64;
     let rms = (w.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / w.len() as f64).sqrt();
     let period = mean_period(t, &w).ok_or_else(|| {
-        format!("no swing in the rate on {axis} (rms {rms:.3} rad/s): fewer than three crossings")
+        format!(
+            "no swing in the rate on {axis} (rms {rms:.3} rad/s): under one full swing in {:.1} s to take its drift off (two upward crossings a period apart); record longer (several swings)",
+            t.last().zip(t.first()).map_or(0.0, |(b, a)| b - a)
+        )
     })?;
     let window = PERIODS * period;
     let (theta, rate) = detrend(t, &w, window);
@@ -87,7 +90,7 @@ pub fn detrend(t: &[f64], w: &[f64], window: f64) -> (Vec<f64>, Vec<f64>) {
 /// The swing's mean period: the time between the first and the last
 /// upward crossing of the median (interpolated, through a band of 30% of
 /// the largest excursion, as [`rough_period`]) over their number less one;
-/// `None` with fewer than three.
+/// `None` with fewer than two a period apart.
 fn mean_period(t: &[f64], w: &[f64]) -> Option<f64> {
     let rough = rough_period(t, w)?;
     let mut sorted = w.to_vec();
@@ -113,7 +116,7 @@ fn mean_period(t: &[f64], w: &[f64]) -> Option<f64> {
             count += 1;
         }
     }
-    (count >= 2).then(|| span / count as f64)
+    (count >= 1).then(|| span / count as f64)
 }
 
 /// The mean of `v` over a window of `window` s centred on each stamp,

@@ -39,7 +39,7 @@ pub const MEDIAN_STEP_MAX_S: f64 = 0.5;
 pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<Range<usize>>> {
     anyhow::ensure!(
         step <= MEDIAN_STEP_MAX_S,
-        "the time stamps are {step} s apart (their median): too slow to see a pendulum swing; if the time column is in milliseconds or microseconds, name the unit in its header (`time (ms)`) or convert it to seconds"
+        "the time stamps are {step:.3e} s apart (their median): too slow to see a pendulum swing; if the time column is in milliseconds or microseconds, name the unit in its header (`time (ms)`) or convert it to seconds"
     );
     // A long step is no gap where the angle moved by at most one count
     // across it: an encoder logged per count writes no row while the
