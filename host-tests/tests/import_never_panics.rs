@@ -3,12 +3,14 @@
 //! axes, a position, runs) with numbers, `NaN`, empty cells and text in
 //! any place, of 0 to 60 rows, written with a comma, tab or semicolon,
 //! imported with the defaults and with a pivot, and read line by line as
-//! `estimate --follow` reads it.
+//! `estimate --follow` reads it; time stamps with jumps of up to 10^9 s
+//! (a clock reset, a straggler row) end in a rollout no longer than the
+//! rows can fill, or an error.
 
 use std::path::Path;
 
 use proptest::prelude::*;
-use trainer_core::data::import::{self, ImportOptions};
+use trainer_core::data::import::{self, ImportOptions, Recording};
 use trainer_core::data::table::Table;
 
 /// The names a header may hold.
@@ -71,6 +73,47 @@ proptest! {
                     let _ = import::releases(&rec.t, &rec.theta);
                 }
             }
+        }
+    }
+}
+
+/// A step between time stamps: mostly a frame, sometimes a dropped few,
+/// a long stall, or a jump of up to 10^9 s.
+fn step() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        20 => Just(0.02),
+        2 => 0.03f64..0.5,
+        1 => 1.0f64..100.0,
+        1 => 1e3f64..1e9,
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+    /// A rollout's grid points lie in the parts between gaps: at most
+    /// 63 a row (a step is no gap up to 5 median steps of at most 0.5 s,
+    /// or 2 s where the angle stood still), however far the stamps jump.
+    #[test]
+    fn time_jumps_import_to_a_bounded_rollout_or_an_error(
+        steps in prop::collection::vec(step(), 2..400),
+        still in any::<bool>(),
+    ) {
+        let mut t = vec![0.0];
+        for d in &steps {
+            t.push(t[t.len() - 1] + d);
+        }
+        // `still`: the last row repeats the angle before it (a straggler
+        // across which nothing moved, as an encoder's count standing).
+        let mut theta: Vec<f64> = t.iter().map(|&s| 0.3 * (4.0 * s).cos()).collect();
+        if still {
+            let n = theta.len();
+            theta[n - 1] = theta[n - 2];
+        }
+        let rows = t.len();
+        let rec = Recording { t, theta, theta_dot: None };
+        let opts = ImportOptions { dt: 0.04, ..ImportOptions::default() };
+        if let Ok(r) = import::to_rollout(&rec, 1, &opts) {
+            prop_assert!(r.xs.len() <= 63 * rows + 1, "{} points from {rows} rows", r.xs.len());
         }
     }
 }
