@@ -130,17 +130,24 @@ fn parse_number(field: &str, sep: u8) -> Option<f64> {
     }
 }
 
+/// The finite numbers among `fields`, where each is a number, `NaN` or
+/// empty (`None` where one is text).
+fn numbers_in(fields: &[String], sep: u8) -> Option<usize> {
+    fields
+        .iter()
+        .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+        .then(|| {
+            fields
+                .iter()
+                .filter(|f| parse_number(f, sep).is_some_and(f64::is_finite))
+                .count()
+        })
+}
+
 /// Whether `fields` is a data row: two or more fields, each a number,
 /// `NaN` or empty, at least two of them finite numbers.
 pub(crate) fn is_data(fields: &[String], sep: u8) -> bool {
-    let numbers = fields
-        .iter()
-        .filter(|f| parse_number(f, sep).is_some_and(f64::is_finite))
-        .count();
-    numbers >= 2
-        && fields
-            .iter()
-            .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+    numbers_in(fields, sep).is_some_and(|n| n >= 2)
 }
 
 /// Whether a line, split at its own separator, is a data row
@@ -156,15 +163,11 @@ pub(crate) fn line_is_data(line: &str) -> bool {
 /// Whether `fields` is a data row with values missing: each field a
 /// number, `NaN` or empty, at least one a finite number.
 fn is_partial_data(fields: &[String], sep: u8) -> bool {
-    fields
-        .iter()
-        .any(|f| parse_number(f, sep).is_some_and(f64::is_finite))
-        && fields
-            .iter()
-            .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+    numbers_in(fields, sep).is_some_and(|n| n >= 1)
 }
 
-/// Bytes as text: UTF-8, else Latin-1 (a Windows tool's `°`).
+/// Bytes as text: UTF-16 with its mark, UTF-8, else Latin-1 (a Windows
+/// tool's `°`).
 pub fn decode(bytes: Vec<u8>) -> String {
     // UTF-16 with its byte-order mark (Excel's "Unicode text").
     let utf16 = |le: bool| {

@@ -737,8 +737,10 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
                 .iter()
                 .map(|v| v * scale(layout.angle_unit.0))
                 .collect();
-            let centre = median(&theta);
-            if bare(&header(angle)) == TRACKER_ANGLE && centre.abs() > CENTRE_MAX {
+            let centre = (bare(&header(angle)) == TRACKER_ANGLE)
+                .then(|| crate::metrics::median(&mut theta.clone()))
+                .filter(|c| c.abs() > CENTRE_MAX);
+            if let Some(centre) = centre {
                 return Err(table.error(
                     0,
                     format!(
@@ -802,13 +804,6 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     Ok((recording, layout))
 }
 
-/// The median of `v` (0 for none).
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
 /// The angle's and the rate's columns and units into `layout`.
 fn angle_layout(
     table: &Table,
@@ -840,8 +835,9 @@ fn no_time(table: &Table) -> CsvError {
 /// the angle and the rate, with the radians per unit of each.
 #[derive(Debug, Clone)]
 pub(crate) struct StreamColumns {
-    /// The time column (`None`: the sample rate gives the times).
-    pub time: Option<usize>,
+    /// The time column and its seconds per unit (`None`: the sample rate
+    /// gives the times).
+    pub time: Option<(usize, f64)>,
     /// The angle column and its radians per unit.
     pub angle: (usize, f64),
     /// The rate column and its radians per unit, if one.
@@ -876,7 +872,7 @@ pub(crate) fn stream_columns(
     };
     angle_layout(table, opts, angle, rate, &mut layout);
     Ok(StreamColumns {
-        time,
+        time: time.map(|k| (k, time_scale(&table.header[k]))),
         angle: (angle, scale(layout.angle_unit.0)),
         rate: rate.map(|k| (k, scale(layout.rate_unit.0))),
         layout,
@@ -893,22 +889,21 @@ pub(crate) enum RowRead {
     Repeated,
 }
 
-/// Row `row` (the `place`-th of its table): its time (column `ti`, else
-/// its place at `rate` Hz) and the values of `cols`; a time going back
+/// Row `row` (the `place`-th of its table): its time (column `ti` times
+/// its seconds per unit, else its place at `rate` Hz) and the values of
+/// `cols`; a time going back
 /// from `prev` is an error naming the line, text where a number belongs
 /// too.
 pub(crate) fn read_row(
     table: &Table,
     row: &Row,
     place: usize,
-    (ti, rate): (Option<usize>, Option<f64>),
+    (ti, rate): (Option<(usize, f64)>, Option<f64>),
     cols: &[usize],
     prev: Option<f64>,
 ) -> Result<RowRead, CsvError> {
     let time = match (ti, rate) {
-        (Some(k), _) => table
-            .optional_number(row, k, "time")?
-            .map(|v| v * time_scale(&table.header[k])),
+        (Some((k, scale)), _) => table.optional_number(row, k, "time")?.map(|v| v * scale),
         (None, Some(r)) => Some(place as f64 / r),
         (None, None) => None,
     };
@@ -945,8 +940,9 @@ fn read_rows(
     let mut t: Vec<f64> = Vec::new();
     let mut values = vec![Vec::new(); cols.len()];
     let (mut skipped, mut repeated) = (0, 0);
+    let time = ti.map(|k| (k, time_scale(&table.header[k])));
     for (place, row) in table.rows.iter().enumerate() {
-        match read_row(table, row, place, (ti, rate), cols, t.last().copied())? {
+        match read_row(table, row, place, (time, rate), cols, t.last().copied())? {
             RowRead::Values(time, got) => {
                 t.push(time);
                 for (v, x) in values.iter_mut().zip(got) {
