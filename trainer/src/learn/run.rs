@@ -63,6 +63,20 @@ pub struct RunState {
     pub norm: Norm,
     /// Last losses `[total, parts..]` (parts named in the log's header).
     pub last_losses: [f64; 4],
+    /// The ridge the batches' least squares are solved at where it rose
+    /// above the config's (`train::RIDGE_MAX`); `None`: the config's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ridge: Option<f64>,
+}
+
+impl RunState {
+    /// `cfg` with the ridge the run was trained at.
+    pub fn applied(&self, mut cfg: TrainConfig) -> TrainConfig {
+        if let Some(r) = self.ridge {
+            cfg.ridge = r;
+        }
+        cfg
+    }
 }
 
 /// Files of a run directory.
@@ -185,10 +199,40 @@ pub fn read(dir: &Path) -> Result<(TrainConfig, RunState)> {
             .with_context(|| format!("{}: cannot read", paths.state.display()))?,
     )
     .with_context(|| format!("{}", paths.state.display()))?;
-    Ok((cfg, state))
+    Ok((state.applied(cfg), state))
 }
 
 /// The model kind of run `dir`.
 pub fn kind(dir: &Path) -> Result<ModelKind> {
     Ok(read(dir)?.0.model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's state without a ridge (every run before it could rise)
+    /// reads the config's; one with a risen ridge gives it to every
+    /// reader of the run (the export's refit, a resume).
+    #[test]
+    fn a_risen_ridge_is_read_with_the_run() {
+        let dir = std::env::temp_dir().join(format!("koopman-ridge-{}", std::process::id()));
+        let paths = RunPaths::new(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let cfg = TrainConfig::default();
+        std::fs::write(&paths.config, serde_json::to_string(&cfg).unwrap()).unwrap();
+        let state = r#"{"iteration": 3, "train_seconds": 1.0, "norm": {"mu": [0.0, 0.0], "s": [1.0, 1.0]}, "last_losses": [1.0, 1.0, 1.0, 1.0]}"#;
+        std::fs::write(&paths.state, state).unwrap();
+        let (read_cfg, read_state) = read(&dir).unwrap();
+        assert_eq!(read_state.ridge, None);
+        assert_eq!(read_cfg.ridge, cfg.ridge);
+        let risen = RunState {
+            ridge: Some(1e-4),
+            ..read_state
+        };
+        std::fs::write(&paths.state, serde_json::to_string(&risen).unwrap()).unwrap();
+        let (read_cfg, _) = read(&dir).unwrap();
+        assert_eq!(read_cfg.ridge, 1e-4);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

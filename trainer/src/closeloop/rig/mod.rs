@@ -50,10 +50,16 @@ pub use report::markdown;
 /// 0.036 to 0.041 over the loop's runs (`docs/close-loop-rig/run.sh`).
 pub const SECONDS_PER_ITERATION: f64 = 0.04;
 
-/// Seconds the rest takes there: drawing the rollouts, the export's
-/// choice of the filter's noise and the calibration (48 to 73 in those
-/// runs).
+/// Seconds the rest takes there, besides the replicas' forecasts:
+/// drawing the rollouts, the export's choice of the filter's noise and
+/// the calibration (48 to 73 in those runs).
 pub const SECONDS_BESIDE: f64 = 75.0;
+
+/// Seconds the choice of the filter's noise takes there per second of
+/// the recordings' replicas (`around::replicas`, their middle duration):
+/// a run with its training reused took 55 s at 5 s replicas, 77 s at
+/// 64 s and 242 s at 385 s (q2).
+pub const SECONDS_PER_REPLICA_SECOND: f64 = 0.4;
 
 /// One recording, before and after.
 #[derive(Debug, Clone, Serialize)]
@@ -133,7 +139,10 @@ pub fn close_loop_rig(
         weights,
         &opts,
     )?;
-    let estimated = plan.cfg.iterations as f64 * SECONDS_PER_ITERATION + SECONDS_BESIDE;
+    let replicas = around::replicas(&plan.cfg, &parts, opts.rig, opts.g, dt);
+    let estimated = plan.cfg.iterations as f64 * SECONDS_PER_ITERATION
+        + SECONDS_BESIDE
+        + SECONDS_PER_REPLICA_SECOND * 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
     let [lo, hi] = plan.cfg.length_range();
     say(&format!(
         "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
@@ -161,7 +170,7 @@ pub fn close_loop_rig(
     let blob = out.join("rig.kkf");
     say("choosing the filter's noise and calibrating the verdict");
     let tuning = around::tuning_set(&plan.cfg);
-    let (_, noise) = noise::export(&run, &blob, &tuning)?;
+    let (_, noise) = noise::export(&run, &blob, &tuning, &replicas)?;
     let after_bytes = std::fs::read(&blob)?;
     let after = models::open(&after_bytes, &blob.display().to_string())?;
     // 4. Before and after on the held-out parts.

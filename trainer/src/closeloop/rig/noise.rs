@@ -3,15 +3,17 @@
 //! plan's lab-like draws best, by their lengths first, then their
 //! forecasts.
 //!
-//! 1. The lengths: [`labcheck::misses`] on the draws (the share not within
-//!    2% at the end plus the share not within 5% after the first window).
-//!    The pairs within [`NEAR`] recordings of the fewest misses are as
-//!    good: a pair's misses move by a recording or two with the draws.
-//! 2. Among them, the lowest [`forecast_error`]: the loop scores its blob
-//!    by its forecasts, and the filter's mean they start from follows `Q`
-//!    and `R` as the lengths do. Scored on the same draws without their
-//!    offset: in the forecasts' windows of 64 measurements the centre has
-//!    rarely read it yet, and what it leaves is the same for every pair.
+//! 1. The lengths: [`labcheck::misses`] on the plan's tuning set (the
+//!    share not within 2% at the end plus the share not within 5% after
+//!    the first window), over the new blob's whole range. The pairs within
+//!    [`NEAR`] recordings of the fewest misses are as good: a pair's
+//!    misses move by a recording or two with the draws.
+//! 2. Among them, the lowest [`forecast_error`] on the recordings'
+//!    replicas (`around::replicas`): the loop scores its blob by its
+//!    forecasts of the held-out parts, and the filter's mean they start
+//!    from follows `Q` and `R` as the lengths do. The replicas' last thirds
+//!    are like those parts (their swing, noise and dissipation), which the
+//!    tuning set's shorter draws at larger swings are not.
 
 use anyhow::Result;
 use estimator::Model;
@@ -28,20 +30,21 @@ pub const NEAR: f64 = 2.0;
 /// Share of each draw forecast: its last third, as the loop holds out.
 const HELD_OUT_SHARE: f64 = 1.0 / 3.0;
 
-/// Exports the run `dir` to `out` with the pair chosen on the draws of
-/// `cfg`; returns the export and every pair's scores.
+/// Exports the run `dir` to `out` with the pair chosen on the lengths of
+/// the draws of `cfg` and the forecasts of the `replicas`; returns the
+/// export and every pair's scores.
 pub fn export(
     dir: &std::path::Path,
     out: &std::path::Path,
     cfg: &LabCheckConfig,
+    replicas: &LabCheckConfig,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
-    let level = LabCheckConfig {
-        offsets: [0.0, 0.0],
-        ..cfg.clone()
-    };
     let tolerance = NEAR / cfg.recordings.max(1) as f64;
     export::export_lab_scored(dir, out, tolerance, |m| {
-        Ok((labcheck::misses(m, cfg)?, Some(forecast_error(m, &level)?)))
+        Ok((
+            labcheck::misses(m, cfg)?,
+            Some(forecast_error(m, replicas)?),
+        ))
     })
 }
 

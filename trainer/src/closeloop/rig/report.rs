@@ -94,7 +94,7 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
             s,
             "| {name} | {} | {:.4} ± {:.4} | {:+.2}% | {} | {} | {} | {} |",
             b.forecast
-                .map_or("-".into(), |f| format!("{:.3}", f.median)),
+                .map_or("-".into(), |f| format!("{:.4}", f.median)),
             b.length,
             b.length_std,
             100.0 * (f64::from(b.length) / rec.length_period - 1.0),
@@ -122,7 +122,7 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
     };
     let _ = writeln!(
         s,
-        "| physics at the swings' w | {:.3} | | | | | | |\n| the same with the diagnosed terms | {:.3} | | | | | | |\n",
+        "| physics at the swings' w | {:.4} | | | | | | |\n| the same with the diagnosed terms | {:.4} | | | | | | |\n",
         p0.median, p1.median
     );
     let ratio = after.median / before.median;
