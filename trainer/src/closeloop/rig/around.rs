@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use trainer_core::data::import::{self, Recording};
 use trainer_core::data::lab::Extras;
 use trainer_core::labcheck::{self, LabCheckConfig};
@@ -131,16 +131,10 @@ pub fn plan(
 
 /// The lengths the first parts' swings give, widened by [`LENGTH_SPAN`].
 fn lengths(parts: &[Part], opts: &CloseLoopOptions) -> Result<[f64; 2]> {
-    let ls: Vec<f64> = parts
+    let ls = parts
         .iter()
-        .map(|p| opts.rig.length(opts.g, p.diagnosis.w * p.diagnosis.w))
-        .collect();
-    let lo = ls.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = ls.iter().copied().fold(0.0, f64::max);
-    anyhow::ensure!(
-        lo.is_finite() && lo > 0.0,
-        "the swings give no length to train around"
-    );
+        .map(|p| opts.rig.length(opts.g, p.diagnosis.w * p.diagnosis.w));
+    let [lo, hi] = least_and_greatest(ls).context("the swings give no length to train around")?;
     Ok([lo / LENGTH_SPAN, hi * LENGTH_SPAN])
 }
 
@@ -169,16 +163,7 @@ fn extras(parts: &[Part], chosen: Option<EffectKind>, given: &Extras) -> Extras 
         if chosen == Some(kind) {
             return [0.0, 0.0];
         }
-        let cs: Vec<f64> = parts
-            .iter()
-            .flat_map(|p| &p.diagnosis.effects)
-            .filter(|e| e.name == kind && e.coefficient > 0.0)
-            .map(|e| e.coefficient)
-            .collect();
-        match cs.iter().copied().reduce(f64::min) {
-            Some(lo) => [0.5 * lo, 1.5 * cs.iter().copied().fold(lo, f64::max)],
-            None => given,
-        }
+        named_range(parts, kind).map_or(given, |[lo, hi]| [0.5 * lo, 1.5 * hi])
     };
     Extras {
         offset: given.offset,
@@ -289,20 +274,17 @@ pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) ->
     .map(|s| s.map(|v| v.min(REPLICA_SECONDS_MAX)));
     let noise = spanning(parts.iter().map(|p| p.diagnosis.noise), REPLICA_SPREAD)
         .map(|n| n.map(|v| v.min(tuning.noise[1])));
-    let terms = || parts.iter().flat_map(|p| &p.diagnosis.effects);
-    let mut kinds: Vec<EffectKind> = Vec::new();
-    for e in terms().filter(|e| e.name.is_dynamic() && e.coefficient > 0.0) {
-        if !kinds.contains(&e.name) {
-            kinds.push(e.name);
+    let mut dissipation: Vec<(EffectKind, [f64; 2])> = Vec::new();
+    for e in parts.iter().flat_map(|p| &p.diagnosis.effects) {
+        if e.name.is_dynamic()
+            && e.coefficient > 0.0
+            && !dissipation.iter().any(|(k, _)| *k == e.name)
+        {
+            if let Some([lo, hi]) = named_range(parts, e.name) {
+                dissipation.push((e.name, [lo / REPLICA_SPREAD, hi * REPLICA_SPREAD]));
+            }
         }
     }
-    let dissipation = kinds
-        .into_iter()
-        .filter_map(|kind| {
-            let cs = terms().filter(|e| e.name == kind).map(|e| e.coefficient);
-            spanning(cs, REPLICA_SPREAD).map(|r| (kind, r))
-        })
-        .collect();
     LabCheckConfig {
         lengths: lengths.unwrap_or(tuning.lengths),
         swings: swings.unwrap_or(tuning.swings),
@@ -317,10 +299,28 @@ pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) ->
 /// From the least of `values` over `factor` to the greatest times it
 /// (`None` where the least is not positive).
 fn spanning(values: impl Iterator<Item = f64>, factor: f64) -> Option<[f64; 2]> {
+    least_and_greatest(values).map(|[lo, hi]| [lo / factor, hi * factor])
+}
+
+/// The least and the greatest of `values` (`None` where the least is not
+/// positive, or there are none).
+fn least_and_greatest(values: impl Iterator<Item = f64>) -> Option<[f64; 2]> {
     let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
         (lo.min(x), hi.max(x))
     });
-    (lo.is_finite() && lo > 0.0).then_some([lo / factor, hi * factor])
+    (lo.is_finite() && lo > 0.0).then_some([lo, hi])
+}
+
+/// The least and the greatest positive coefficient the first parts'
+/// diagnoses give the effect `kind`.
+fn named_range(parts: &[Part], kind: EffectKind) -> Option<[f64; 2]> {
+    least_and_greatest(
+        parts
+            .iter()
+            .flat_map(|p| &p.diagnosis.effects)
+            .filter(|e| e.name == kind && e.coefficient > 0.0)
+            .map(|e| e.coefficient),
+    )
 }
 
 #[cfg(test)]
