@@ -133,9 +133,11 @@ pub struct RecordingScore {
     pub source: String,
     /// Steps in all, and held out.
     pub steps: [usize; 2],
-    /// Where a gap in its time stamps begins, s after its start: the
-    /// loop used the part before it (`None`: no gap).
-    pub gap_after_s: Option<f64>,
+    /// Gaps in its time stamps: the loop used its longest unbroken
+    /// stretch.
+    pub gaps: usize,
+    /// The part the loop used, s after its start.
+    pub used_s: [f64; 2],
     /// Where its swing is lost in the noise, s after its start: the loop
     /// used the part before it (`None`: it swings to the end or the gap).
     pub at_rest_after_s: Option<f64>,

@@ -97,22 +97,16 @@ fn split(
     dt: f64,
     say: &dyn Fn(&str),
 ) -> Result<Part> {
-    let t_start = rec.t[0] + start;
-    // The part before the first gap in the time stamps (an encoder
-    // logged per count stops logging when the swing dies out), and
-    // before the swing dies out in the noise (friction stops a
-    // pendulum: a forecast of one at rest shows no dynamics).
-    let end = usable_part(rec, t_start, &r.t, dt);
-    let n = end.steps;
-    if let Some(t) = end.gap_after_s {
-        say(&format!(
-            "{source}: a gap in the time stamps after {t:.2} s; the loop uses the part before it"
-        ));
-    }
-    if let Some(t) = end.at_rest_after_s {
-        say(&format!(
-            "{source}: the swing is lost in the noise after {t:.2} s; the loop uses the part before it"
-        ));
+    // The longest unbroken stretch between gaps in the time stamps (a
+    // tracker's dropped frames; an encoder logged per count stops
+    // logging when the swing dies out), up to where the swing dies out
+    // in the noise (friction stops a pendulum: a forecast of one at rest
+    // shows no dynamics).
+    let end = usable_part(rec, rec.t[0] + start, &r.t, dt);
+    let (from, n) = (end.from, end.steps);
+    let t_start = rec.t[0] + start + end.from_s;
+    if let Some(why) = end.said() {
+        say(&format!("{source}: {why}"));
     }
     let cut = (FIT_SHARE * n as f64).round() as usize;
     let d = diagnose_first_part(source, rec, t_start, cut, dt, &end)?;
@@ -121,7 +115,10 @@ fn split(
         .iter()
         .find(|e| e.name == EffectKind::Offset)
         .map_or(0.0, |e| e.coefficient);
-    let xs: Vec<[f64; 2]> = r.xs[..n].iter().map(|x| [x[0] - offset, x[1]]).collect();
+    let xs: Vec<[f64; 2]> = r.xs[from..from + n]
+        .iter()
+        .map(|x| [x[0] - offset, x[1]])
+        .collect();
     say(&format!(
         "{source}: {} ({} turning points)",
         d.verdict, d.turns
@@ -130,7 +127,7 @@ fn split(
         source: source.to_string(),
         series: Rollout {
             id: r.id,
-            t: r.t[..n].to_vec(),
+            t: (0..n).map(|k| k as f64 * dt).collect(),
             xs,
         },
         cut,
@@ -157,10 +154,11 @@ fn diagnose_first_part(
     let k = rec.t.partition_point(|&x| x < t_cut).max(k0);
     diagnose::diagnose_recording(&rec.t[k0..k], &rec.theta[k0..k]).with_context(|| {
         let used = n as f64 * dt;
-        match (end.gap_after_s, end.at_rest_after_s) {
-            (Some(t), _) => format!(
-                "{source}: the first {:.0}% of the {t:.2} s before a gap in its time stamps (close the loop on the part after it: --start)",
-                100.0 * FIT_SHARE
+        match (&end.gaps, end.at_rest_after_s) {
+            (Some(_), _) => format!(
+                "{source}: the first {:.0}% of the part used ({}; close the loop on another part: --start, --duration)",
+                100.0 * FIT_SHARE,
+                end.said().unwrap_or_default()
             ),
             (None, Some(_)) => format!(
                 "{source}: the first {:.0}% of the {used:.2} s before its swing is lost in the noise",
@@ -171,30 +169,73 @@ fn diagnose_first_part(
     })
 }
 
-/// Where a recording's usable part ends.
+/// Where a recording's usable part begins and ends.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct UsablePart {
+    /// Its first step on the model's grid.
+    pub from: usize,
+    /// Where it begins, s after the start.
+    pub from_s: f64,
     /// Steps on the model's grid.
     pub steps: usize,
-    /// Where a gap in the time stamps begins, s (`None`: no gap first).
-    pub gap_after_s: Option<f64>,
-    /// Where the swing is lost in the noise, s (`None`: not before the
-    /// end or the gap).
+    /// The gaps in the time stamps (`None`: none).
+    pub gaps: Option<Gaps>,
+    /// Where the swing is lost in the noise, s after the start (`None`:
+    /// not before the end or the gap).
     pub at_rest_after_s: Option<f64>,
 }
 
+/// Gaps in a recording's time stamps: the loop uses its longest
+/// unbroken stretch.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Gaps {
+    /// How many.
+    pub count: usize,
+    /// Where the stretch ends, s after the start.
+    pub to_s: f64,
+}
+
+impl UsablePart {
+    /// Where and why the part used is less than the whole recording
+    /// (`None`: it is all of it).
+    pub fn said(&self) -> Option<String> {
+        let gaps = self.gaps.map(|g| {
+            format!(
+                "{} gap{} in its time stamps: the loop used its longest unbroken stretch, {:.2} to {:.2} s",
+                g.count,
+                if g.count == 1 { "" } else { "s" },
+                self.from_s,
+                g.to_s
+            )
+        });
+        let rest = self.at_rest_after_s.map(|t| {
+            format!(
+                "its swing is lost in the noise after {t:.2} s: the loop used the part before it"
+            )
+        });
+        match (gaps, rest) {
+            (Some(g), Some(r)) => Some(format!("{g}; {r}")),
+            (g, r) => g.or(r),
+        }
+    }
+}
+
 /// Step 2: the part of `rec` (as recorded, from `t_start`) and of its
-/// import on the grid `t` (at `dt`, from 0) that the loop uses: up to the
-/// first gap in the time stamps, and up to [`AT_REST_AFTER_PERIODS`] after
+/// import on the grid `t` (at `dt`, from 0) that the loop uses: its
+/// longest unbroken stretch between gaps in the time stamps, and up to [`AT_REST_AFTER_PERIODS`] after
 /// the last turning point above the noise ([`diagnose::swings::swings`])
 /// when the recording runs on for longer than that, at rest
 /// ([`AT_REST_SCATTER`]). The end is read from the whole recording,
 /// held-out part included: like a gap, it says which data can be scored,
 /// not what the models learn.
 fn usable_part(rec: &Recording, t_start: f64, t: &[f64], dt: f64) -> UsablePart {
-    let n = data::unbroken(t, dt);
-    let gap_after_s = (n < t.len()).then(|| t[n - 1]);
-    let t_end = t_start + t[n - 1];
+    let (stretch, count) = data::longest_unbroken(t, dt);
+    let (from, n) = (stretch.start, stretch.len().max(1));
+    let from_s = t.get(from).copied().unwrap_or(0.0);
+    let to_s = t.get(from + n - 1).copied().unwrap_or(from_s);
+    let gaps = (count > 0).then_some(Gaps { count, to_s });
+    let t_start = t_start + from_s;
+    let t_end = t_start + (to_s - from_s);
     let k0 = rec.t.partition_point(|&x| x < t_start);
     let k1 = rec.t.partition_point(|&x| x <= t_end).max(k0);
     let rest = diagnose::swings::swings(&rec.t[k0..k1], &rec.theta[k0..k1])
@@ -214,13 +255,17 @@ fn usable_part(rec: &Recording, t_start: f64, t: &[f64], dt: f64) -> UsablePart 
         });
     match rest {
         Some(at) => UsablePart {
+            from,
+            from_s,
             steps: ((at / dt).floor() as usize + 1).min(n),
-            gap_after_s: None,
-            at_rest_after_s: Some(at),
+            gaps,
+            at_rest_after_s: Some(from_s + at),
         },
         None => UsablePart {
+            from,
+            from_s,
             steps: n,
-            gap_after_s,
+            gaps,
             at_rest_after_s: None,
         },
     }
@@ -255,6 +300,35 @@ mod tests {
         (rec, t, xs)
     }
 
+    /// Frames dropped for 0.3 s at 2 s and for 0.2 s at 5 s of a 30 s
+    /// recording: the loop uses the 25 s after the second gap, from its
+    /// first step on the grid, and says so; the recording whole, none.
+    #[test]
+    fn a_gapped_recording_is_used_over_its_longest_stretch() {
+        let dt = 0.04;
+        let (mut rec, _, _) = recorded(Effect::new(EffectKind::Viscous, 0.02));
+        let keep: Vec<usize> = (0..rec.t.len())
+            .filter(|&k| !(2.0..2.3).contains(&rec.t[k]) && !(5.0..5.2).contains(&rec.t[k]))
+            .collect();
+        rec.t = keep.iter().map(|&k| rec.t[k]).collect();
+        rec.theta = keep.iter().map(|&k| rec.theta[k]).collect();
+        let part = usable_part(&rec, 0.0, &rec.t.clone(), dt);
+        let g = part.gaps.expect("two gaps");
+        assert_eq!(g.count, 2);
+        assert!((part.from_s - 5.2).abs() < 1e-9, "{part:?}");
+        assert_eq!(part.from, rec.t.iter().position(|&t| t >= 5.2).unwrap());
+        assert_eq!(part.steps, rec.t.len() - part.from);
+        assert!((g.to_s - rec.t[rec.t.len() - 1]).abs() < 1e-9);
+        let said = part.said().unwrap();
+        assert!(
+            said.contains("2 gaps") && said.contains("5.20 to 29.96 s"),
+            "{said}"
+        );
+        let (rec, t, _) = recorded(Effect::new(EffectKind::Viscous, 0.02));
+        let part = usable_part(&rec, 0.0, &t, dt);
+        assert!(part.gaps.is_none() && part.from == 0 && part.said().is_none());
+    }
+
     /// Coulomb friction of 0.19 rad/s^2 stops the rod after about 8 s: the
     /// loop uses the part up to 1.5 periods after the last swing above
     /// the noise, so from two periods before to 1.5 after where the clean
@@ -275,7 +349,7 @@ mod tests {
             "at rest after {at:.2} s; the clean swing under the noise after {t_stop:.2} s"
         );
         assert_eq!(part.steps, (at / dt).floor() as usize + 1);
-        assert!(part.gap_after_s.is_none());
+        assert!(part.gaps.is_none() && part.from == 0);
         let (rec, t, _) = recorded(Effect::new(EffectKind::Viscous, 0.02));
         let part = usable_part(&rec, 0.0, &t, dt);
         assert!(part.at_rest_after_s.is_none(), "{part:?}");

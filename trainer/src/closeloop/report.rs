@@ -151,10 +151,13 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         s.push_str(&format!("\nCriterion: {}.\n\n", d.diagnosis.criterion));
     }
     for x in &r.recordings {
-        if let Some(t) = x.gap_after_s {
+        if x.gaps > 0 {
+            let [a, b] = x.used_s;
             s.push_str(&format!(
-                "{}: a gap in its time stamps after {t:.2} s; the loop used the part before it.\n\n",
-                x.source
+                "{}: {} gap{} in its time stamps; the loop used its longest unbroken stretch, {a:.2} to {b:.2} s.\n\n",
+                x.source,
+                x.gaps,
+                if x.gaps == 1 { "" } else { "s" }
             ));
         }
         if let Some(t) = x.at_rest_after_s {

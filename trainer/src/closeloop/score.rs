@@ -50,7 +50,11 @@ pub(super) fn recording(
                 .map_or(0, |x| x.xs.len()),
             r.xs.len() - cut,
         ],
-        gap_after_s: part.end.gap_after_s,
+        gaps: part.end.gaps.map_or(0, |g| g.count),
+        used_s: [
+            part.end.from_s,
+            part.end.from_s + (part.end.steps.max(1) - 1) as f64 * dt,
+        ],
         at_rest_after_s: part.end.at_rest_after_s,
         diagnosis: d.clone(),
         offset_corrected: part.offset,

@@ -214,12 +214,34 @@ pub fn model_steps(t: &[f64], dt: f64) -> Result<Vec<u32>, String> {
         .collect()
 }
 
+/// Whether `b` follows `a` on an unbroken grid of `dt`.
+fn follows(a: f64, b: f64, dt: f64) -> bool {
+    b - a <= 1.5 * dt
+}
+
 /// How many samples from the start of `t` lie on an unbroken grid of `dt`
 /// (all of them when there is no gap).
 pub fn unbroken(t: &[f64], dt: f64) -> usize {
     t.windows(2)
-        .position(|w| w[1] - w[0] > 1.5 * dt)
+        .position(|w| !follows(w[0], w[1], dt))
         .map_or(t.len(), |k| k + 1)
+}
+
+/// The longest run of samples of `t` on an unbroken grid of `dt` (the
+/// first of equal ones; all of `t` when there is no gap), and how many
+/// gaps break `t`.
+pub fn longest_unbroken(t: &[f64], dt: f64) -> (std::ops::Range<usize>, usize) {
+    let (mut best, mut from, mut gaps) = (0..t.len().min(1), 0, 0);
+    for (k, w) in t.windows(2).enumerate() {
+        if !follows(w[0], w[1], dt) {
+            gaps += 1;
+            from = k + 1;
+        }
+        if k + 2 - from > best.len() {
+            best = from..k + 2;
+        }
+    }
+    (best, gaps)
 }
 
 /// Checks that every rollout of `ds` is sampled every `dt` seconds (the
@@ -261,4 +283,25 @@ pub fn check_interval_with(ds: &Dataset, dt: f64, gaps: bool) -> Result<(), Stri
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Gaps of 0.2 s break a 0.04 s grid after 3 and 5 more samples: the
+    /// longest run is the last 6; none, all; one sample, itself.
+    #[test]
+    fn the_longest_unbroken_run_is_found_between_gaps() {
+        let t = [
+            0.0, 0.04, 0.08, 0.28, 0.32, 0.36, 0.40, 0.44, 0.64, 0.68, 0.72, 0.76, 0.80, 0.84,
+        ];
+        assert_eq!(longest_unbroken(&t, 0.04), (8..14, 2));
+        assert_eq!(unbroken(&t, 0.04), 3);
+        assert_eq!(longest_unbroken(&t[..8], 0.04), (3..8, 1));
+        let even: Vec<f64> = (0..10).map(|k| k as f64 * 0.04).collect();
+        assert_eq!(longest_unbroken(&even, 0.04), (0..10, 0));
+        assert_eq!(longest_unbroken(&[1.0], 0.04), (0..1, 0));
+        assert_eq!(longest_unbroken(&[], 0.04), (0..0, 0));
+    }
 }

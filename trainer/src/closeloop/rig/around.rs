@@ -352,8 +352,10 @@ mod tests {
             diagnosis,
             offset: 0.0,
             end: UsablePart {
+                from: 0,
+                from_s: 0.0,
                 steps: 3000,
-                gap_after_s: None,
+                gaps: None,
                 at_rest_after_s: None,
             },
         }

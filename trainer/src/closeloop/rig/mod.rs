@@ -68,6 +68,10 @@ pub struct RigRecording {
     pub source: String,
     /// Measurements: all used, and held out.
     pub steps: [usize; 2],
+    /// Where and why the part used is less than the whole recording
+    /// (gaps in its time stamps, a swing lost in the noise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part_used: Option<String>,
     /// The first part's diagnosis.
     pub diagnosis: SwingDiagnosis,
     /// The length the first part's swings give, m (the period's).
@@ -181,6 +185,7 @@ pub fn close_loop_rig(
             Ok(RigRecording {
                 source: p.source.clone(),
                 steps: [p.series.xs.len(), p.series.xs.len() - p.cut],
+                part_used: p.end.said(),
                 diagnosis: d.clone(),
                 length_period: opts.rig.length(opts.g, d.w * d.w),
                 before: read::held_out(&given, p, dt)?,

@@ -81,6 +81,9 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
             d.amplitude[1]
         ))
     );
+    if let Some(why) = &rec.part_used {
+        let _ = writeln!(s, "Not all of it: {why}.\n");
+    }
     let _ = writeln!(
         s,
         "| held-out third | forecast error | length, m | vs period's | verdict | second parameter | Q | read on |"
