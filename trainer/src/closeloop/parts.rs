@@ -238,21 +238,20 @@ fn usable_part(rec: &Recording, t_start: f64, t: &[f64], dt: f64) -> UsablePart 
     let t_end = t_start + (to_s - from_s);
     let k0 = rec.t.partition_point(|&x| x < t_start);
     let k1 = rec.t.partition_point(|&x| x <= t_end).max(k0);
-    let rest = diagnose::swings::swings(&rec.t[k0..k1], &rec.theta[k0..k1])
-        .ok()
-        .and_then(|sw| {
-            let last = sw.turns.last()?.t;
-            let at = last + AT_REST_AFTER_PERIODS * sw.period;
-            // The swing finder also stops at a glitch or a slip of phase:
-            // at rest only if what follows scatters about its middle by
-            // no more than [`AT_REST_SCATTER`] times the noise.
-            let k = rec.t.partition_point(|&x| x < at).max(k0);
-            let after = rec.theta.get(k..k1).filter(|a| a.len() >= 2)?;
-            let mid = trainer_core::metrics::median(&mut after.to_vec());
-            let rms =
-                (after.iter().map(|v| (v - mid).powi(2)).sum::<f64>() / after.len() as f64).sqrt();
-            (at < t_end && rms <= AT_REST_SCATTER * sw.noise).then_some(at - t_start)
-        });
+    let (ts, thetas) = diagnose::without_glitches(&rec.t[k0..k1], &rec.theta[k0..k1]);
+    let rest = diagnose::swings::swings(&ts, &thetas).ok().and_then(|sw| {
+        let last = sw.turns.last()?.t;
+        let at = last + AT_REST_AFTER_PERIODS * sw.period;
+        // The swing finder also stops at a glitch or a slip of phase:
+        // at rest only if what follows scatters about its middle by
+        // no more than [`AT_REST_SCATTER`] times the noise.
+        let k = rec.t.partition_point(|&x| x < at).max(k0);
+        let after = rec.theta.get(k..k1).filter(|a| a.len() >= 2)?;
+        let mid = trainer_core::metrics::median(&mut after.to_vec());
+        let rms =
+            (after.iter().map(|v| (v - mid).powi(2)).sum::<f64>() / after.len() as f64).sqrt();
+        (at < t_end && rms <= AT_REST_SCATTER * sw.noise).then_some(at - t_start)
+    });
     match rest {
         Some(at) => UsablePart {
             from,
