@@ -2,14 +2,17 @@
 one row per recording from runs/cl-rig-*/report.json, the lab recordings'
 truth from runs/labSEED/lab.json, each run's wall time from its .time file.
 The lab seed is the first argument (61 unless given); the shared real
-recordings (q2, the encoder) are listed with seed 61 only."""
+recordings (q2, the encoder) are listed with seed 61 only; `phone` lists
+run-inputs.sh's phone export."""
 import glob, json, os, re, sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 R = os.path.join(ROOT, 'runs')
 truth = {}
 SEED = sys.argv[1] if len(sys.argv) > 1 else '61'
-lab = os.path.join(R, f'lab{SEED}', 'lab.json')
+# A seed's lab set, or a single run whose truth lies beside its input
+# (`collect.py phone`: runs/phone-gyro.json, written by phone.py).
+lab = os.path.join(R, f'lab{SEED}', 'lab.json') if SEED.isdigit() else os.path.join(R, f'{SEED}-gyro.json')
 if os.path.exists(lab):
     for c in json.load(open(lab)):
         truth[c['file']] = c
@@ -32,7 +35,7 @@ def fc(b):
 
 print('| recording | truth | period\'s length, m | diagnosed | blob | forecast error | length, m (vs period\'s) | verdict | second parameter | Q | after / before | physics with / without terms | goal | minutes |')
 print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
-order = (['q2', 'encoder'] if SEED == '61' else []) + sorted(n[len('cl-rig-'):] for n in os.listdir(R) if n.startswith(f'cl-rig-lab{SEED}-') and os.path.isdir(os.path.join(R, n)))
+order = [SEED] if not SEED.isdigit() else (['q2', 'encoder'] if SEED == '61' else []) + sorted(n[len('cl-rig-'):] for n in os.listdir(R) if n.startswith(f'cl-rig-lab{SEED}-') and os.path.isdir(os.path.join(R, n)))
 for name in order:
     p = os.path.join(R, f'cl-rig-{name}', 'report.json')
     if not os.path.exists(p):

@@ -96,6 +96,17 @@ pub struct DrawnSet<'a> {
     pub draw: &'a LabDraw,
 }
 
+/// Uniform over `[lo, hi)`; `lo` where the range is empty or a point
+/// (a range drawn around one recording can be: a duration capped at both
+/// ends).
+pub fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+    if hi > lo {
+        rng.random_range(lo..hi)
+    } else {
+        lo
+    }
+}
+
 /// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty);
 /// `0 < lo` and both finite, which the callers check.
 pub fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {

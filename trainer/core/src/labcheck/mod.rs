@@ -28,7 +28,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::data::Rollout;
-use crate::data::drawn::log_uniform;
+use crate::data::drawn::{log_uniform, uniform};
 use crate::data::import::{self, ImportOptions};
 use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
 use crate::peer::{self, Peer, PeerConfig, Reading};
@@ -358,16 +358,7 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
 fn draw_mixed(rng: &mut ChaCha8Rng, parts: &[(EffectKind, [f64; 2])]) -> Vec<Effect> {
     parts
         .iter()
-        .map(|&(kind, [lo, hi])| {
-            Effect::new(
-                kind,
-                if hi > lo {
-                    rng.random_range(lo..hi)
-                } else {
-                    lo
-                },
-            )
-        })
+        .map(|&(kind, [lo, hi])| Effect::new(kind, uniform(rng, [lo, hi])))
         .collect()
 }
 
@@ -383,7 +374,7 @@ pub fn draw(
     kind: EffectKind,
     [lo, hi]: [f64; 2],
 ) -> LabSpec {
-    let coefficient = rng.random_range(lo..hi);
+    let coefficient = uniform(rng, [lo, hi]);
     let length = log_uniform(rng, cfg.lengths);
     let theta0 = log_uniform(rng, cfg.swings);
     // At least 12 samples a period.
@@ -406,13 +397,8 @@ pub fn draw(
         Stamps::Even
     };
     let noise = rng.random_range(cfg.noise[0]..=cfg.noise[1]);
-    let seconds = rng.random_range(cfg.seconds[0]..cfg.seconds[1]);
-    let [o0, o1] = cfg.offsets;
-    let offset = if o0 < o1 {
-        rng.random_range(o0..o1)
-    } else {
-        o0
-    };
+    let seconds = uniform(rng, cfg.seconds);
+    let offset = uniform(rng, cfg.offsets);
     LabSpec {
         case: Case::of_dissipation(kind),
         length,

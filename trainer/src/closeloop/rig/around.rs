@@ -424,5 +424,12 @@ mod tests {
         part.series.xs = vec![[0.0, 0.0]; 90_000];
         let r = replicas(&cfg, std::slice::from_ref(&part), Rig::Rod, 9.81, 0.02);
         assert_eq!(r.seconds, [REPLICA_SECONDS_MAX, REPLICA_SECONDS_MAX]);
+        // A range capped at both ends, or a coefficient's of one value, is
+        // drawn as its one value.
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
+        let spec =
+            trainer_core::labcheck::draw(&mut rng, &r, Rig::Rod, EffectKind::Viscous, [0.01, 0.01]);
+        assert_eq!(spec.duration, REPLICA_SECONDS_MAX);
+        assert_eq!(spec.effects[0].coefficient, 0.01);
     }
 }
