@@ -164,6 +164,28 @@ impl At {
         }
     }
 
+    /// A read that failed (the blob's filter stopped, `why`): no length,
+    /// no verdict; a miss wherever a length is counted.
+    fn failed(why: String) -> At {
+        At {
+            measured: 0,
+            length: f32::NAN,
+            std: f32::NAN,
+            effect: f32::NAN,
+            trust: Trust::Pending,
+            reasons: vec![why],
+            nis: None,
+            rate_ratio: None,
+            consistency: None,
+            held: false,
+            q_factor: None,
+            q_factor_std: None,
+            q_swing: None,
+            period_length: None,
+            period_length_std: None,
+        }
+    }
+
     /// The relative error against `truth`.
     pub fn error(&self, truth: f64) -> f64 {
         (f64::from(self.length) - truth).abs() / truth
@@ -318,7 +340,12 @@ pub fn run(model: &Model<'_>, cfg: &LabCheckConfig) -> Result<Vec<Outcome>> {
             source_dt: source,
         } = drawn?;
         let context = || label(k, &spec);
-        let (first, end) = blob_reads(model, &r, dt, Some(LAB_G), source).with_context(context)?;
+        // A blob whose filter stops on a recording (a state no number)
+        // reads nothing of it: a miss, not an end to the check.
+        let (first, end) = blob_reads(model, &r, dt, Some(LAB_G), source).unwrap_or_else(|e| {
+            let failed = At::failed(format!("{}: {e:#}", context()));
+            (failed.clone(), failed)
+        });
         let (peer_first, peer_end) = peer_reads(&r, dt, LAB_G, rig).with_context(context)?;
         let Some(effect) = spec.effects.first() else {
             anyhow::bail!("lab recording {k} has no dissipation");
@@ -792,8 +819,27 @@ mod tests {
         );
     }
 
-    /// A recording is labelled with the case of its dissipation.
+    /// A read that failed (the filter stopped) is a miss at both points,
+    /// neither right nor wrong-and-trusted, and the worst in the median.
     #[test]
+    fn a_failed_read_is_a_miss() {
+        let failed = At::failed("the filter stopped".into());
+        let o = [
+            outcome(0.1, at(1.01, true), at(1.01, true)),
+            outcome(0.3, at(1.03, true), at(1.03, true)),
+            outcome(0.6, failed.clone(), failed),
+        ];
+        let c = figures(&o).all;
+        assert_eq!((c.n, c.end_within_2, c.first_within_5), (3, 1, 2));
+        assert_eq!((c.wrong_trusted, c.trusted_of_right), (0, [2, 2]));
+        assert!(
+            (c.median_end_error - 0.03).abs() < 1e-6,
+            "{}",
+            c.median_end_error
+        );
+    }
+
+    /// A recording is labelled with the case of its dissipation.
     fn a_recording_is_labelled_by_its_dissipation() {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let cfg = LabCheckConfig::default();
