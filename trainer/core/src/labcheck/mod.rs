@@ -739,15 +739,7 @@ mod tests {
                 Trust::Untrusted(Reasons::new())
             },
             reasons: vec![],
-            nis: None,
-            rate_ratio: None,
-            consistency: None,
-            held: false,
-            q_factor: None,
-            q_factor_std: None,
-            q_swing: None,
-            period_length: None,
-            period_length_std: None,
+            ..At::failed(String::new())
         }
     }
 
