@@ -33,8 +33,9 @@ pub struct Args {
     rig: RigArg,
     /// Training iterations of each model (the two train at once; default
     /// 1500, a 40 s recording near a minute on two cores); with
-    /// `--weights`, of the fine-tuning (default 6000; a blob trained anew
-    /// runs 4500 unless asked, else three times the iterations asked).
+    /// `--weights`, of the fine-tuning (default 12000, or 6000 where the
+    /// time estimate at 12000 is over 12 min; a blob trained anew runs
+    /// 4500 unless asked, else three times the iterations asked).
     #[arg(long)]
     iterations: Option<usize>,
     /// Seed of both trainings.
@@ -64,6 +65,9 @@ pub fn run(a: Args) -> Result<()> {
             (Some(_), None) => closeloop::rig::FINE_TUNE_ITERATIONS,
             (None, None) => closeloop::ITERATIONS,
         },
+        iterations_least: a
+            .iterations
+            .unwrap_or(closeloop::rig::FINE_TUNE_ITERATIONS_LEAST),
         anew_iterations: a.iterations.map_or(closeloop::rig::ANEW_ITERATIONS, |n| {
             n.saturating_mul(closeloop::rig::ANEW_FACTOR)
         }),

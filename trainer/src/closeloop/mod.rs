@@ -116,6 +116,10 @@ pub struct CloseLoopOptions {
     /// Training iterations of each of the two models; with a given rig
     /// blob, of the fine-tuning.
     pub iterations: usize,
+    /// With a given rig blob, the fewest iterations of the fine-tuning:
+    /// it runs these where `iterations` would take past
+    /// `rig::BUDGET_SECONDS` by the time estimate.
+    pub iterations_least: usize,
     /// With a given rig blob, the iterations of a blob trained anew.
     pub anew_iterations: usize,
     /// Seed of both trainings.

@@ -41,7 +41,9 @@ mod noise;
 mod read;
 mod report;
 
-pub use around::{ANEW_FACTOR, ANEW_ITERATIONS, FINE_TUNE_ITERATIONS, LENGTH_SPAN};
+pub use around::{
+    ANEW_FACTOR, ANEW_ITERATIONS, FINE_TUNE_ITERATIONS, FINE_TUNE_ITERATIONS_LEAST, LENGTH_SPAN,
+};
 pub use read::BlobRead;
 pub use report::markdown;
 
@@ -60,6 +62,12 @@ pub const SECONDS_BESIDE: f64 = 75.0;
 /// a run with its training reused took 55 s at 5 s replicas, 77 s at
 /// 64 s and 242 s at 385 s (q2).
 pub const SECONDS_PER_REPLICA_SECOND: f64 = 0.4;
+
+/// Seconds a run may be estimated to take after the recordings are read
+/// before a fine-tuning runs fewer iterations
+/// (`CloseLoopOptions::iterations_least`): 12 minutes, under the 15 a
+/// recording may take on 2 cores.
+pub const BUDGET_SECONDS: f64 = 720.0;
 
 /// One recording, before and after.
 #[derive(Debug, Clone, Serialize)]
@@ -99,7 +107,8 @@ pub struct RigLoopReport {
     pub effect_reason: String,
     /// Its training config.
     pub config: TrainConfig,
-    /// The time estimated before training, s.
+    /// The time estimated before training, s, with the time the reading
+    /// and diagnosis took before it.
     pub estimated_seconds: f64,
     /// The filter's noise pairs tried and their scores (`noise`).
     pub noise: Vec<export::NoiseCandidate>,
@@ -144,9 +153,25 @@ pub fn close_loop_rig(
         &opts,
     )?;
     let replicas = around::replicas(&plan.cfg, &parts, opts.rig, opts.g, dt);
-    let estimated = plan.cfg.iterations as f64 * SECONDS_PER_ITERATION
-        + SECONDS_BESIDE
+    let beside = SECONDS_BESIDE
         + SECONDS_PER_REPLICA_SECOND * 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
+    let estimate = |iterations: usize| iterations as f64 * SECONDS_PER_ITERATION + beside;
+    let mut plan = plan;
+    if plan.cfg.warm_start.is_some()
+        && opts.iterations_least < plan.cfg.iterations
+        && estimate(plan.cfg.iterations) > BUDGET_SECONDS
+    {
+        plan.start = format!(
+            "{}; {} iterations, not {}, which would take about {:.0} min (the budget: {:.0})",
+            plan.start,
+            opts.iterations_least,
+            plan.cfg.iterations,
+            estimate(plan.cfg.iterations) / 60.0,
+            BUDGET_SECONDS / 60.0
+        );
+        plan.cfg.iterations = opts.iterations_least;
+    }
+    let estimated = estimate(plan.cfg.iterations);
     let [lo, hi] = plan.cfg.length_range();
     say(&format!(
         "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
@@ -163,6 +188,7 @@ pub fn close_loop_rig(
         plan.start,
         estimated / 60.0
     ));
+    let estimated = estimated + start.elapsed().as_secs_f64();
     // 3. Train, export, calibrate.
     let run = out.join("run");
     let bar = if opts.quiet {
