@@ -2,7 +2,8 @@
 one row per recording from runs/cl-rig-*/report.json, the lab recordings'
 truth from runs/labSEED/lab.json, each run's wall time from its .time file.
 The lab seed is the first argument (61 unless given); the shared real
-recordings (q2, the encoder) are listed with seed 61 only; `phone` lists
+recordings (q2, the encoder) are listed with seed 61, or after a seed
+and `real`; `phone` lists
 run-inputs.sh's phone export."""
 import glob, json, os, re, sys
 
@@ -35,7 +36,8 @@ def fc(b):
 
 print('| recording | truth | period\'s length, m | diagnosed | blob | forecast error | length, m (vs period\'s) | verdict | second parameter | Q | after / before | physics with / without terms | goal | minutes |')
 print('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|')
-order = [SEED] if not SEED.isdigit() else (['q2', 'encoder'] if SEED == '61' else []) + sorted(n[len('cl-rig-'):] for n in os.listdir(R) if n.startswith(f'cl-rig-lab{SEED}-') and os.path.isdir(os.path.join(R, n)))
+REAL = SEED == '61' or 'real' in sys.argv[2:]
+order = [SEED] if not SEED.isdigit() else (['q2', 'encoder'] if REAL else []) + sorted(n[len('cl-rig-'):] for n in os.listdir(R) if n.startswith(f'cl-rig-lab{SEED}-') and os.path.isdir(os.path.join(R, n)))
 for name in order:
     p = os.path.join(R, f'cl-rig-{name}', 'report.json')
     if not os.path.exists(p):

@@ -69,6 +69,16 @@ pub const SECONDS_PER_REPLICA_SECOND: f64 = 0.4;
 /// recording may take on 2 cores.
 pub const BUDGET_SECONDS: f64 = 720.0;
 
+/// A fine-tuning's iterations: those `asked`, or the `least` where those
+/// asked would run past [`BUDGET_SECONDS`] by the time `estimate`.
+fn within_budget(asked: usize, least: usize, estimate: impl Fn(usize) -> f64) -> usize {
+    if least < asked && estimate(asked) > BUDGET_SECONDS {
+        least
+    } else {
+        asked
+    }
+}
+
 /// One recording, before and after.
 #[derive(Debug, Clone, Serialize)]
 pub struct RigRecording {
@@ -144,7 +154,7 @@ pub fn close_loop_rig(
     let dt = ds.sidecar.dt;
     let parts = parts::split_all(&recs, &ds, opts.import.start, &say)?;
     // 2. The plan.
-    let plan = around::plan(
+    let mut plan = around::plan(
         &parts,
         &recs,
         &export::config_of(weights),
@@ -156,20 +166,20 @@ pub fn close_loop_rig(
     let beside = SECONDS_BESIDE
         + SECONDS_PER_REPLICA_SECOND * 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
     let estimate = |iterations: usize| iterations as f64 * SECONDS_PER_ITERATION + beside;
-    let mut plan = plan;
-    if plan.cfg.warm_start.is_some()
-        && opts.iterations_least < plan.cfg.iterations
-        && estimate(plan.cfg.iterations) > BUDGET_SECONDS
-    {
+    let asked = plan.cfg.iterations;
+    let iterations = if plan.cfg.warm_start.is_some() {
+        within_budget(asked, opts.iterations_least, estimate)
+    } else {
+        asked
+    };
+    if iterations < asked {
         plan.start = format!(
-            "{}; {} iterations, not {}, which would take about {:.0} min (the budget: {:.0})",
+            "{}; {iterations} iterations, not {asked}, which would take about {:.0} min (the budget: {:.0})",
             plan.start,
-            opts.iterations_least,
-            plan.cfg.iterations,
-            estimate(plan.cfg.iterations) / 60.0,
+            estimate(asked) / 60.0,
             BUDGET_SECONDS / 60.0
         );
-        plan.cfg.iterations = opts.iterations_least;
+        plan.cfg.iterations = iterations;
     }
     let estimated = estimate(plan.cfg.iterations);
     let [lo, hi] = plan.cfg.length_range();
@@ -234,4 +244,30 @@ pub fn close_loop_rig(
     };
     report::write(out, &report)?;
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The time estimate of a run whose replicas last `replica_s`.
+    fn estimate(replica_s: f64) -> impl Fn(usize) -> f64 {
+        move |n| {
+            n as f64 * SECONDS_PER_ITERATION
+                + SECONDS_BESIDE
+                + SECONDS_PER_REPLICA_SECOND * replica_s
+        }
+    }
+
+    /// A lab recording of a minute and q2 (385 s) fine-tune at the full
+    /// count; a 24 min recording, whose replicas are capped at 600 s,
+    /// falls back to the least; a count asked is kept.
+    #[test]
+    fn a_long_recording_fine_tunes_within_the_budget() {
+        let (full, least) = (FINE_TUNE_ITERATIONS, FINE_TUNE_ITERATIONS_LEAST);
+        assert_eq!(within_budget(full, least, estimate(60.0)), full);
+        assert_eq!(within_budget(full, least, estimate(385.0)), full);
+        assert_eq!(within_budget(full, least, estimate(600.0)), least);
+        assert_eq!(within_budget(full, full, estimate(600.0)), full);
+    }
 }
