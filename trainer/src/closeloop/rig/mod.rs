@@ -69,6 +69,14 @@ pub const SECONDS_PER_REPLICA_SECOND: f64 = 0.4;
 /// recording may take on 2 cores.
 pub const BUDGET_SECONDS: f64 = 720.0;
 
+/// Seconds a run is estimated to take after the recordings are read: its
+/// `iterations`, the rest besides, and replicas lasting `replica_s`.
+fn estimated_seconds(iterations: usize, replica_s: f64) -> f64 {
+    iterations as f64 * SECONDS_PER_ITERATION
+        + SECONDS_BESIDE
+        + SECONDS_PER_REPLICA_SECOND * replica_s
+}
+
 /// A fine-tuning's iterations: those `asked`, or the `least` where those
 /// asked would run past [`BUDGET_SECONDS`] by the time `estimate`.
 fn within_budget(asked: usize, least: usize, estimate: impl Fn(usize) -> f64) -> usize {
@@ -163,9 +171,8 @@ pub fn close_loop_rig(
         &opts,
     )?;
     let replicas = around::replicas(&plan.cfg, &parts, opts.rig, opts.g, dt);
-    let beside = SECONDS_BESIDE
-        + SECONDS_PER_REPLICA_SECOND * 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
-    let estimate = |iterations: usize| iterations as f64 * SECONDS_PER_ITERATION + beside;
+    let replica_s = 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
+    let estimate = |iterations: usize| estimated_seconds(iterations, replica_s);
     let asked = plan.cfg.iterations;
     let iterations = if plan.cfg.warm_start.is_some() {
         within_budget(asked, opts.iterations_least, estimate)
@@ -252,11 +259,7 @@ mod tests {
 
     /// The time estimate of a run whose replicas last `replica_s`.
     fn estimate(replica_s: f64) -> impl Fn(usize) -> f64 {
-        move |n| {
-            n as f64 * SECONDS_PER_ITERATION
-                + SECONDS_BESIDE
-                + SECONDS_PER_REPLICA_SECOND * replica_s
-        }
+        move |n| estimated_seconds(n, replica_s)
     }
 
     /// A lab recording of a minute and q2 (385 s) fine-tune at the full
