@@ -622,6 +622,40 @@ fn an_effect_trains_as_the_second_parameter() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("empty range"));
 }
 
+/// The fine-tuning config `koopman close-loop --weights weights/rig.kkf`
+/// wrote for lab seed 83's viscous + drag recording (releases from 0.03
+/// rad under up to 0.01 rad of noise): at the config's ridge of 1e-6 its
+/// first batch's least squares grows without bound, a loss of 2.7e32 whose
+/// gradient is no number. The step is dropped and the batch solved again
+/// at a risen ridge, so the run trains; before, it ended in "the loss is
+/// NaN at iteration 2".
+#[test]
+fn a_diverging_batch_is_solved_again_at_a_risen_ridge() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let out = run_ok(
+        koopman()
+            .current_dir(root())
+            .args(["train", "--quiet", "--config"])
+            .arg(root().join("trainer/tests/fixtures/diverging-first-batch.json"))
+            .arg("--run")
+            .arg(&run),
+    );
+    assert!(out.contains("trained 2 iterations"), "{out}");
+    let state: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("state.json")).unwrap()).unwrap();
+    let ridge = state["ridge"].as_f64().unwrap();
+    assert!(ridge > 1e-6 && ridge <= 1e-3, "ridge {ridge}");
+    let log = std::fs::read_to_string(run.join("log.csv")).unwrap();
+    let rows: Vec<&str> = log.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{log}");
+    for row in rows {
+        for v in row.split(',') {
+            assert!(v.parse::<f64>().unwrap().is_finite(), "{row}");
+        }
+    }
+}
+
 #[test]
 fn close_loop_runs_the_whole_loop_on_a_lab_recording() {
     // A lab-like recording (seed 3's viscous damping with a sensor offset:

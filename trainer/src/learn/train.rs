@@ -5,6 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Bytes, Device, Tensor, TensorData};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -24,10 +25,12 @@ use super::warm;
 /// pivoting, the batches of lab seed 67's Coulomb recording
 /// (`koopman close-loop`: strong friction at small swings, windows that
 /// barely move) were no number at the config's 1e-6 of the trace within
-/// 1 to 12 iterations; at 1e-5 its 6000 trained.
+/// 1 to 12 iterations; at 1e-5 its 6000 trained. Seed 83's viscous + drag
+/// recording's first batch was a number (2.7e32) but its step was not.
 pub const RIDGE_MAX: f64 = 1e-3;
 
-/// Factor the ridge rises by each time a batch is no number at it.
+/// Factor the ridge rises by each time a batch, or its step, is no number
+/// at it.
 pub const RIDGE_RISE: f64 = 10.0;
 
 /// Normalised windows and their parameters, ready to batch.
@@ -226,16 +229,34 @@ fn train_model<M: Trainable>(
     let base_seconds = state.train_seconds;
     while state.iteration < cfg.iterations {
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
-        let (l, values) = loop {
+        let lr = cfg.lr_at(state.iteration);
+        let values = loop {
             let l = model.batch_losses(x.clone(), p.clone(), &cfg);
             init_guard.take();
-            match finite_losses(&l, dir, &state, &cfg) {
-                Ok(values) => break (l, values),
+            let step = finite_losses(&l, dir, &state, &cfg).and_then(|values| {
+                let grads = GradientsParams::from_grads(l.total.backward(), &model);
+                let mut next_optim = optim.clone();
+                let next = next_optim.step(lr, model.clone(), grads);
+                anyhow::ensure!(
+                    finite(&next),
+                    "{}: the step of iteration {} is no number at a ridge of {:.0e}: try a larger --batch or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
+                    dir.display(),
+                    state.iteration + 1,
+                    cfg.ridge,
+                    state.iteration - state.iteration % cfg.checkpoint_every
+                );
+                Ok((values, next, next_optim))
+            });
+            match step {
+                Ok((values, next, next_optim)) => {
+                    (model, optim) = (next, next_optim);
+                    break values;
+                }
                 Err(_) if cfg.ridge < RIDGE_MAX => {
                     cfg.ridge = (RIDGE_RISE * cfg.ridge).min(RIDGE_MAX);
                     state.ridge = Some(cfg.ridge);
                     bar.println(format!(
-                        "{}: the batch's least squares is no number at iteration {}: solved again at a ridge of {:.0e}",
+                        "{}: the batch's least squares diverged at iteration {}: solved again at a ridge of {:.0e}",
                         dir.display(),
                         state.iteration + 1,
                         cfg.ridge
@@ -244,8 +265,6 @@ fn train_model<M: Trainable>(
                 Err(e) => return Err(e),
             }
         };
-        let grads = GradientsParams::from_grads(l.total.backward(), &model);
-        model = optim.step(cfg.lr_at(state.iteration), model, grads);
         state.iteration += 1;
         state.last_losses = values;
         state.train_seconds = base_seconds + start.elapsed().as_secs_f64();
@@ -355,6 +374,19 @@ fn show_progress(bar: &ProgressBar, cfg: &TrainConfig, state: &RunState) {
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_position(state.iteration as u64);
+}
+
+/// Whether every weight of `model` is a number.
+fn finite<M: Module>(model: &M) -> bool {
+    struct Finite(bool);
+    impl ModuleVisitor for Finite {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            self.0 &= param.val().is_finite().all().into_scalar::<bool>();
+        }
+    }
+    let mut check = Finite(true);
+    model.visit(&mut check);
+    check.0
 }
 
 /// The batch's losses `[total, parts..]` as numbers; an error when the
