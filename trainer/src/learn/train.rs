@@ -231,23 +231,9 @@ fn train_model<M: Trainable>(
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
         let lr = cfg.lr_at(state.iteration);
         let values = loop {
-            let l = model.batch_losses(x.clone(), p.clone(), &cfg);
+            let stepped = step(&model, &optim, (&x, &p), lr, dir, &cfg, &state);
             init_guard.take();
-            let step = finite_losses(&l, dir, &state, &cfg).and_then(|values| {
-                let grads = GradientsParams::from_grads(l.total.backward(), &model);
-                let mut next_optim = optim.clone();
-                let next = next_optim.step(lr, model.clone(), grads);
-                anyhow::ensure!(
-                    finite(&next),
-                    "{}: the step of iteration {} is no number at a ridge of {:.0e}: try a larger --batch or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
-                    dir.display(),
-                    state.iteration + 1,
-                    cfg.ridge,
-                    state.iteration - state.iteration % cfg.checkpoint_every
-                );
-                Ok((values, next, next_optim))
-            });
-            match step {
+            match stepped {
                 Ok((values, next, next_optim)) => {
                     (model, optim) = (next, next_optim);
                     break values;
@@ -374,6 +360,35 @@ fn show_progress(bar: &ProgressBar, cfg: &TrainConfig, state: &RunState) {
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_position(state.iteration as u64);
+}
+
+/// One step of Adam at `lr` on the batch `(x, p)`: its losses, the
+/// model and the optimiser after it; an error, leaving `model` and
+/// `optim` as they were, where the losses or the stepped weights are no
+/// number.
+fn step<M: Trainable>(
+    model: &M,
+    optim: &ModuleOptimizer,
+    (x, p): (&Tensor<3>, &Tensor<2>),
+    lr: f64,
+    dir: &Path,
+    cfg: &TrainConfig,
+    state: &RunState,
+) -> Result<([f64; 4], M, ModuleOptimizer)> {
+    let l = model.batch_losses(x.clone(), p.clone(), cfg);
+    let values = finite_losses(&l, dir, state, cfg)?;
+    let grads = GradientsParams::from_grads(l.total.backward(), model);
+    let mut next_optim = optim.clone();
+    let next = next_optim.step(lr, model.clone(), grads);
+    anyhow::ensure!(
+        finite(&next),
+        "{}: the step of iteration {} is no number at a ridge of {:.0e}: try a larger --batch or a smaller --lr (the last checkpoint, at iteration {}, is kept)",
+        dir.display(),
+        state.iteration + 1,
+        cfg.ridge,
+        state.iteration - state.iteration % cfg.checkpoint_every
+    );
+    Ok((values, next, next_optim))
 }
 
 /// Whether every weight of `model` is a number.
