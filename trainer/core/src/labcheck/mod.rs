@@ -832,6 +832,7 @@ mod tests {
     }
 
     /// A recording is labelled with the case of its dissipation.
+    #[test]
     fn a_recording_is_labelled_by_its_dissipation() {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let cfg = LabCheckConfig::default();
