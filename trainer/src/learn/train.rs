@@ -386,9 +386,14 @@ fn step<M: Trainable>(
         dir.display(),
         state.iteration + 1,
         cfg.ridge,
-        state.iteration - state.iteration % cfg.checkpoint_every
+        last_checkpoint(state, cfg)
     );
     Ok((values, next, next_optim))
+}
+
+/// The iteration of the run's last checkpoint, which an error keeps.
+fn last_checkpoint(state: &RunState, cfg: &TrainConfig) -> usize {
+    state.iteration - state.iteration % cfg.checkpoint_every
 }
 
 /// Whether every weight of `model` is a number.
@@ -416,7 +421,7 @@ fn finite_losses(l: &Losses, dir: &Path, state: &RunState, cfg: &TrainConfig) ->
         dir.display(),
         values[0],
         state.iteration + 1,
-        state.iteration - state.iteration % cfg.checkpoint_every
+        last_checkpoint(state, cfg)
     );
     Ok(values)
 }
