@@ -744,6 +744,39 @@ fn close_loop_from_a_rig_blob_ends_in_a_rig_blob_that_estimate_runs() {
         assert!(rec_r[side]["forecast"]["median"].as_f64().unwrap() >= 0.0);
         assert!(rec_r[side]["length"].as_f64().unwrap() > 0.0);
     }
+    // The model kept: the last, unless it forecasts the replicas worse
+    // than the given blob; then a snapshot that forecasts them better
+    // (or the last, where none does), its blob the one written.
+    let kept = &r["kept"];
+    let weighed = kept["weighed"].as_array().unwrap();
+    assert_eq!(weighed[0]["iteration"], 30, "{kept:#}");
+    let last = weighed[0]["replicas"].as_f64().unwrap();
+    let given = kept["given"].as_f64().unwrap();
+    assert!(last.is_finite() && given.is_finite(), "{kept:#}");
+    if last <= given {
+        assert_eq!(weighed.len(), 1, "{kept:#}");
+        assert_eq!(kept["kept"], 30, "{kept:#}");
+    } else {
+        let at: Vec<u64> = weighed[1..]
+            .iter()
+            .map(|w| w["iteration"].as_u64().unwrap())
+            .collect();
+        assert_eq!(at, [0, 8, 15], "{kept:#}");
+        let best = weighed
+            .iter()
+            .min_by(|a, b| {
+                let v = |w: &serde_json::Value| w["replicas"].as_f64().unwrap();
+                v(a).total_cmp(&v(b))
+            })
+            .unwrap();
+        assert_eq!(kept["kept"], best["iteration"], "{kept:#}");
+    }
+    let sidecar: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("rig.json")).unwrap()).unwrap();
+    assert_eq!(
+        sidecar["iteration"], kept["kept"],
+        "the blob written is the one kept"
+    );
     // The blob runs as a user runs it, its effect named.
     let csv = d.join("rec.csv");
     import_at_rig_interval(&rec, &csv);

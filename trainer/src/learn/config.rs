@@ -131,6 +131,11 @@ pub struct TrainConfig {
     /// one's, which real rigs were read with.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub unevenness_floor: Option<f64>,
+    /// Iterations after which a copy of the model is kept beside the
+    /// checkpoint (`learn::run::snapshot_path`; 0: the start, which a
+    /// fine-tuning has loaded): a caller may choose among them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub snapshots: Vec<usize>,
 }
 
 impl Default for TrainConfig {
@@ -168,6 +173,7 @@ impl Default for TrainConfig {
             trust_factor: 1.5,
             warm_start: None,
             unevenness_floor: None,
+            snapshots: Vec::new(),
         }
     }
 }

@@ -106,6 +106,12 @@ impl RunPaths {
     }
 }
 
+/// Where run `dir` keeps its model as it was after `iteration`
+/// ([`TrainConfig::snapshots`]).
+pub fn snapshot_path(dir: &Path, iteration: usize) -> PathBuf {
+    dir.join(format!("model-{iteration}.bpk"))
+}
+
 /// The device all training runs on: flex CPU with autodiff.
 pub fn device() -> Device {
     Device::flex().autodiff()

@@ -227,6 +227,9 @@ fn train_model<M: Trainable>(
     let mut log = String::new();
     let start = Instant::now();
     let base_seconds = state.train_seconds;
+    if state.iteration == 0 {
+        snapshot(dir, &model, &cfg, 0)?;
+    }
     while state.iteration < cfg.iterations {
         let (x, p) = batcher.batch(&cfg, state.iteration, &device);
         let lr = cfg.lr_at(state.iteration);
@@ -267,6 +270,7 @@ fn train_model<M: Trainable>(
             values[2]
         ));
         bar.inc(1);
+        snapshot(dir, &model, &cfg, state.iteration)?;
         if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
             checkpoint(&paths, &model, &optim, &state, &mut log)?;
         }
@@ -424,6 +428,25 @@ fn finite_losses(l: &Losses, dir: &Path, state: &RunState, cfg: &TrainConfig) ->
         last_checkpoint(state, cfg)
     );
     Ok(values)
+}
+
+/// Keeps a copy of `model` as it is after `iteration` where `cfg` asks
+/// for one ([`TrainConfig::snapshots`]).
+fn snapshot<M: Trainable>(
+    dir: &Path,
+    model: &M,
+    cfg: &TrainConfig,
+    iteration: usize,
+) -> Result<()> {
+    if !cfg.snapshots.contains(&iteration) {
+        return Ok(());
+    }
+    let bytes = model
+        .clone()
+        .into_record()
+        .into_bytes()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    write_atomic(&super::run::snapshot_path(dir, iteration), &bytes)
 }
 
 /// Appends `log` to the run's log (emptying it) and saves the model, the

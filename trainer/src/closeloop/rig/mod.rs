@@ -14,6 +14,9 @@
 //!    export it with its filter's noise chosen on lab-like recordings
 //!    around the plan by their lengths, then forecasts (`noise`), and
 //!    calibrate its trust verdict on held-out draws of the plan.
+//!    A fine-tuning keeps its last model unless it forecasts the
+//!    recordings' replicas worse than the given blob; then the snapshot
+//!    that forecasts them best (`snapshot`).
 //! 4. Read each held-out part with the given blob (before) and the new
 //!    one (after): forecast error, the length against the period's, the
 //!    verdict, the effect against the diagnosis (`read::held_out`); the
@@ -40,12 +43,14 @@ mod around;
 mod noise;
 mod read;
 mod report;
+mod snapshot;
 
 pub use around::{
     ANEW_FACTOR, ANEW_ITERATIONS, FINE_TUNE_ITERATIONS, FINE_TUNE_ITERATIONS_LEAST, LENGTH_SPAN,
 };
 pub use read::BlobRead;
 pub use report::markdown;
+pub use snapshot::{Choice, Weighed};
 
 /// Seconds an iteration of a rig blob's training takes on the 2-core
 /// machine (128 windows of 128 steps, 64 wide), for the time estimate:
@@ -68,6 +73,11 @@ pub const SECONDS_PER_REPLICA_SECOND: f64 = 0.4;
 /// (`CloseLoopOptions::iterations_least`): 12 minutes, under the 15 a
 /// recording may take on 2 cores.
 pub const BUDGET_SECONDS: f64 = 720.0;
+
+/// Seconds a run may take in all before it stops weighing the
+/// fine-tuning's snapshots (`snapshot`): 14 minutes, under the 15 a
+/// recording may take on 2 cores, a minute left for the reads.
+pub const LIMIT_SECONDS: f64 = 840.0;
 
 /// Seconds a run is estimated to take after the recordings are read: its
 /// `iterations`, the rest besides, and replicas lasting `replica_s`.
@@ -128,8 +138,12 @@ pub struct RigLoopReport {
     /// The time estimated before training, s, with the time the reading
     /// and diagnosis took before it.
     pub estimated_seconds: f64,
-    /// The filter's noise pairs tried and their scores (`noise`).
+    /// The filter's noise pairs tried for the model kept, and their
+    /// scores (`noise`).
     pub noise: Vec<export::NoiseCandidate>,
+    /// Which of a fine-tuning's models was kept, weighed on the replicas
+    /// (`snapshot`; `None`: trained anew, its last).
+    pub kept: Option<Choice>,
     /// Per recording.
     pub recordings: Vec<RigRecording>,
     /// Wall time, s.
@@ -188,10 +202,13 @@ pub fn close_loop_rig(
         );
         plan.cfg.iterations = iterations;
     }
+    if plan.cfg.warm_start.is_some() {
+        plan.cfg.snapshots = snapshot::iterations(plan.cfg.iterations);
+    }
     let estimated = estimate(plan.cfg.iterations);
     let [lo, hi] = plan.cfg.length_range();
     say(&format!(
-        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores",
+        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores{}",
         opts.rig.length_label(),
         plan.cfg.theta0[0],
         plan.cfg.theta0[1],
@@ -203,7 +220,18 @@ pub fn close_loop_rig(
                 e.name, e.range[0], e.range[1]
             )),
         plan.start,
-        estimated / 60.0
+        estimated / 60.0,
+        if plan.cfg.snapshots.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", and up to {:.0} more where its last model forecasts the recordings' replicas worse than the given blob (its snapshots are weighed)",
+                (plan.cfg.snapshots.len() as f64 * estimate(0))
+                    .min(LIMIT_SECONDS - estimated)
+                    .max(0.0)
+                    / 60.0
+            )
+        }
     ));
     let estimated = estimated + start.elapsed().as_secs_f64();
     // 3. Train, export, calibrate.
@@ -218,6 +246,21 @@ pub fn close_loop_rig(
     say("choosing the filter's noise and calibrating the verdict");
     let tuning = around::tuning_set(&plan.cfg);
     let (_, noise) = noise::export(&run, &blob, &tuning, &replicas)?;
+    let (kept, noise) = if plan.cfg.warm_start.is_some() {
+        say("weighing the fine-tuning's last model against the given blob on the replicas");
+        let room = || start.elapsed().as_secs_f64() + estimate(0) <= LIMIT_SECONDS;
+        let (choice, noise_kept) = snapshot::keep(
+            &run,
+            &blob,
+            plan.cfg.iterations,
+            &given,
+            (&tuning, &replicas),
+            &room,
+        )?;
+        (Some(choice), noise_kept.unwrap_or(noise))
+    } else {
+        (None, noise)
+    };
     let after_bytes = std::fs::read(&blob)?;
     let after = models::open(&after_bytes, &blob.display().to_string())?;
     // 4. Before and after on the held-out parts.
@@ -246,6 +289,7 @@ pub fn close_loop_rig(
         config: plan.cfg,
         estimated_seconds: estimated,
         noise,
+        kept,
         recordings,
         seconds: start.elapsed().as_secs_f64(),
     };

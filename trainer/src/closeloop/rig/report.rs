@@ -36,6 +36,9 @@ pub fn markdown(r: &RigLoopReport) -> String {
         r.seconds / 60.0,
         r.estimated_seconds / 60.0,
     );
+    if let Some(k) = &r.kept {
+        kept(&mut s, k, r);
+    }
     let _ = writeln!(
         s,
         "Run it on the next recording: `koopman import REC --dt {} --out rec.csv`, then `koopman estimate --weights {} --g 9.81 rec.csv`.\n",
@@ -79,6 +82,42 @@ pub fn markdown(r: &RigLoopReport) -> String {
         recording(&mut s, rec, r);
     }
     s
+}
+
+/// Which of the fine-tuning's models was kept, and why.
+fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
+    let Some(last) = k.weighed.first() else {
+        return;
+    };
+    if !k.took_snapshot() && k.weighed.len() == 1 {
+        let _ = writeln!(
+            s,
+            "Its last model forecasts replicas of the recordings (lab-like draws around the first parts' diagnoses) at {:.4}, the given blob at {:.4}: the last is kept.\n",
+            last.replicas, k.given
+        );
+        return;
+    }
+    let each: Vec<String> = k
+        .weighed
+        .iter()
+        .map(|w| format!("{} iterations {:.4}", w.iteration, w.replicas))
+        .collect();
+    let outcome = if k.took_snapshot() {
+        format!(
+            "the model after {} iterations, which forecasts them best, is the blob written",
+            k.kept
+        )
+    } else {
+        "none forecasts them better than the last, which is kept".to_string()
+    };
+    let _ = writeln!(
+        s,
+        "**The fine-tuning's last model forecasts replicas of the recordings worse than `{}`** ({:.4} against {:.4}; lab-like draws around the first parts' diagnoses). Its snapshots were exported and weighed on them ({}): {outcome}.\n",
+        r.given.display(),
+        last.replicas,
+        k.given,
+        each.join(", "),
+    );
 }
 
 /// One recording's table and goal line.
