@@ -120,7 +120,7 @@ pub fn keep(
             best = Some((w, out, noise));
         }
     }
-    let kept = match best {
+    let (kept, noise) = match best {
         Some((w, out, noise)) => {
             for (from, to) in [
                 (out.clone(), blob.to_path_buf()),
@@ -138,9 +138,9 @@ pub fn keep(
         Choice {
             given: given_error,
             weighed,
-            kept: kept.0,
+            kept,
         },
-        kept.1,
+        noise,
     ))
 }
 
