@@ -50,7 +50,7 @@ pub use around::{
 };
 pub use read::BlobRead;
 pub use report::markdown;
-pub use snapshot::{Choice, Weighed};
+pub use snapshot::{Choice, Kept, Weighed};
 
 /// Seconds an iteration of a rig blob's training takes on the 2-core
 /// machine (128 windows of 128 steps, 64 wide), for the time estimate:
@@ -176,10 +176,11 @@ pub fn close_loop_rig(
     let dt = ds.sidecar.dt;
     let parts = parts::split_all(&recs, &ds, opts.import.start, &say)?;
     // 2. The plan.
+    let given_cfg = export::config_of(weights);
     let mut plan = around::plan(
         &parts,
         &recs,
-        &export::config_of(weights),
+        &given_cfg,
         given.blob().body.trust.max_unevenness,
         weights,
         &opts,
@@ -249,11 +250,17 @@ pub fn close_loop_rig(
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
         let room = || start.elapsed().as_secs_f64() + estimate(0) <= LIMIT_SECONDS;
+        let named = |c: &TrainConfig| c.effect.as_ref().map(|e| e.name);
+        let given_blob = snapshot::Given {
+            model: &given,
+            path: weights,
+            carries_effect: named(&given_cfg).is_some() && named(&given_cfg) == named(&plan.cfg),
+        };
         let (choice, noise_kept) = snapshot::keep(
             &run,
             &blob,
             plan.cfg.iterations,
-            &given,
+            &given_blob,
             (&tuning, &replicas),
             &room,
         )?;

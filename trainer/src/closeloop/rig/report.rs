@@ -19,11 +19,23 @@ pub fn markdown(r: &RigLoopReport) -> String {
     let mut s = String::new();
     let c = &r.config;
     let _ = writeln!(s, "# close-loop: a rig blob\n");
+    let written = if r
+        .kept
+        .as_ref()
+        .is_some_and(|k| k.kept == super::Kept::Given)
+    {
+        format!(
+            "a copy of `{}`, unchanged: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
+            r.given.display(),
+            r.start
+        )
+    } else {
+        r.start.clone()
+    };
     let _ = writeln!(
         s,
-        "Wrote `{}` (with its sidecar), {}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}).\n",
+        "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}).\n",
         r.blob.display(),
-        r.start,
         r.effect_reason,
         c.lab.as_ref().map_or(0, |d| d.rollouts),
         c.length_range()[0],
@@ -102,11 +114,15 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
         .iter()
         .map(|w| format!("{} iterations {:.4}", w.iteration, w.replicas))
         .collect();
-    let outcome = if k.took_snapshot() {
+    let outcome = if let super::Kept::Given = k.kept {
         format!(
-            "the model after {} iterations, which forecasts them best, is the blob written",
-            k.kept
+            "none forecasts them as well as `{}`, whose second parameter is already the effect named, so it is the blob written, unchanged",
+            r.given.display()
         )
+    } else if let super::Kept::Iteration(at) = k.kept
+        && k.took_snapshot()
+    {
+        format!("the model after {at} iterations, which forecasts them best, is the blob written")
     } else {
         "none forecasts them better than the last, which is kept".to_string()
     };

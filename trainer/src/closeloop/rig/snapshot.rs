@@ -1,7 +1,11 @@
 //! Which of the fine-tuning's models the loop keeps: its last, unless it
 //! forecasts the recordings' replicas (`around::replicas`) worse than the
 //! given blob does; then the one of its snapshots that forecasts them
-//! best, each exported as the last was (`noise::export`).
+//! best, each exported as the last was (`noise::export`). Where none
+//! forecasts them as well as the given blob and the given blob's second
+//! parameter is already the effect named, the given blob itself is kept:
+//! the loop never writes a blob for that effect that it has measured to
+//! forecast worse than the one it was given.
 //!
 //! The replicas are drawn from the first parts' diagnoses alone, and
 //! their forecasts foretell the held-out ones: over the 27 lab recordings
@@ -49,6 +53,18 @@ pub struct Weighed {
     pub replicas: f64,
 }
 
+/// The model kept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kept {
+    /// The fine-tuning's model after this many iterations.
+    Iteration(usize),
+    /// The given blob, unchanged (its second parameter is the effect
+    /// named, and no model of the fine-tuning forecast the replicas as
+    /// well).
+    Given,
+}
+
 /// What was weighed and kept.
 #[derive(Debug, Clone, Serialize)]
 pub struct Choice {
@@ -58,8 +74,8 @@ pub struct Choice {
     /// them worse than the given blob (else the last alone), as many as
     /// the time left.
     pub weighed: Vec<Weighed>,
-    /// The iterations of the model kept.
-    pub kept: usize,
+    /// The model kept.
+    pub kept: Kept,
 }
 
 impl Choice {
@@ -67,72 +83,98 @@ impl Choice {
     pub fn took_snapshot(&self) -> bool {
         self.weighed
             .first()
-            .is_some_and(|w| w.iteration != self.kept)
+            .is_some_and(|w| Kept::Iteration(w.iteration) != self.kept)
     }
+}
+
+/// The model to keep: the `last` where it forecasts the replicas no worse
+/// than the `given` blob's error, else the best of it and the
+/// `snapshots`; the given blob where that best is still worse and the
+/// given `carries_effect` (its second parameter is the one named).
+pub fn choose(last: Weighed, snapshots: &[Weighed], given: f64, carries_effect: bool) -> Kept {
+    if last.replicas <= given {
+        return Kept::Iteration(last.iteration);
+    }
+    let best = snapshots
+        .iter()
+        .fold(last, |b, w| if w.replicas < b.replicas { *w } else { b });
+    if carries_effect && best.replicas > given {
+        Kept::Given
+    } else {
+        Kept::Iteration(best.iteration)
+    }
+}
+
+/// The blob the loop was given.
+pub struct Given<'a> {
+    /// Its model.
+    pub model: &'a Model<'a>,
+    /// Where it lies (its sidecar beside it).
+    pub path: &'a Path,
+    /// Whether its second parameter is the effect named.
+    pub carries_effect: bool,
 }
 
 /// Keeps at `blob` the model of the run `dir` (whose last, of
 /// `iterations`, is exported there) that forecasts the `replicas` best
 /// where the last forecasts them worse than the `given` blob; each
 /// snapshot, in order while `room()` says another fits in the time, is
-/// exported with its noise chosen on `tuning` and the `replicas`.
-/// Returns the choice and the kept export's noise pairs (`None`: the
-/// last's, already at `blob`).
+/// exported with its noise chosen on `tuning` and the `replicas`. Where
+/// none forecasts them as well and the given carries the effect named,
+/// the given blob is written there. Returns the choice and the kept
+/// export's noise pairs (`None`: the last's, already at `blob`; none
+/// for the given blob, whose noise this loop did not choose).
 pub fn keep(
     dir: &Path,
     blob: &Path,
     iterations: usize,
-    given: &Model<'_>,
+    given: &Given<'_>,
     (tuning, replicas): (&LabCheckConfig, &LabCheckConfig),
     room: &dyn Fn() -> bool,
 ) -> Result<(Choice, Option<Vec<crate::export::NoiseCandidate>>)> {
-    let given_error = noise::forecast_error(given, replicas)?;
-    let last = score(blob, replicas)?;
-    let mut weighed = vec![Weighed {
+    let given_error = noise::forecast_error(given.model, replicas)?;
+    let last = Weighed {
         iteration: iterations,
-        replicas: last,
-    }];
-    if last <= given_error {
-        return Ok((
-            Choice {
-                given: given_error,
-                weighed,
-                kept: iterations,
-            },
-            None,
-        ));
-    }
-    let mut best: Option<(Weighed, PathBuf, Vec<crate::export::NoiseCandidate>)> = None;
-    for at in self::iterations(iterations) {
-        if !room() {
-            break;
-        }
-        let snap = dir.join(format!("snapshot-{at}"));
-        prepare(dir, &snap, at)?;
-        let out = snap.join("rig.kkf");
-        let (_, noise) = noise::export(&snap, &out, tuning, replicas)?;
-        let w = Weighed {
-            iteration: at,
-            replicas: score(&out, replicas)?,
-        };
-        weighed.push(w);
-        if w.replicas < best.as_ref().map_or(last, |b| b.0.replicas) {
-            best = Some((w, out, noise));
-        }
-    }
-    let (kept, noise) = match best {
-        Some((w, out, noise)) => {
-            for (from, to) in [
-                (out.clone(), blob.to_path_buf()),
-                (out.with_extension("json"), blob.with_extension("json")),
-            ] {
-                std::fs::copy(&from, &to).with_context(|| {
-                    format!("{} -> {}: cannot copy", from.display(), to.display())
-                })?;
+        replicas: score(blob, replicas)?,
+    };
+    let mut weighed = vec![last];
+    let mut exported: Vec<(usize, PathBuf, Vec<crate::export::NoiseCandidate>)> = Vec::new();
+    if last.replicas > given_error {
+        for at in self::iterations(iterations) {
+            if !room() {
+                break;
             }
-            (w.iteration, Some(noise))
+            let snap = dir.join(format!("snapshot-{at}"));
+            prepare(dir, &snap, at)?;
+            let out = snap.join("rig.kkf");
+            let (_, noise) = noise::export(&snap, &out, tuning, replicas)?;
+            weighed.push(Weighed {
+                iteration: at,
+                replicas: score(&out, replicas)?,
+            });
+            exported.push((at, out, noise));
         }
-        None => (iterations, None),
+    }
+    let kept = choose(
+        last,
+        weighed.get(1..).unwrap_or_default(),
+        given_error,
+        given.carries_effect,
+    );
+    let noise = match kept {
+        Kept::Iteration(at) if at == iterations => None,
+        Kept::Iteration(at) => {
+            let (_, out, noise) = exported
+                .into_iter()
+                .find(|(i, _, _)| *i == at)
+                .context("the snapshot kept was not exported")?;
+            write_as(&out, blob)?;
+            Some(noise)
+        }
+        Kept::Given => {
+            write_as(given.path, blob)?;
+            Some(Vec::new())
+        }
     };
     Ok((
         Choice {
@@ -142,6 +184,18 @@ pub fn keep(
         },
         noise,
     ))
+}
+
+/// Copies the blob at `from` and its sidecar to `to` and its sidecar.
+fn write_as(from: &Path, to: &Path) -> Result<()> {
+    for (from, to) in [
+        (from.to_path_buf(), to.to_path_buf()),
+        (from.with_extension("json"), to.with_extension("json")),
+    ] {
+        std::fs::copy(&from, &to)
+            .with_context(|| format!("{} -> {}: cannot copy", from.display(), to.display()))?;
+    }
+    Ok(())
 }
 
 /// The replicas' forecast error of the blob at `path`.
@@ -182,5 +236,40 @@ mod tests {
         assert_eq!(iterations(30), vec![0, 8, 15]);
         assert_eq!(iterations(1), vec![0]);
         assert_eq!(iterations(0), Vec::<usize>::new());
+    }
+
+    fn w(iteration: usize, replicas: f64) -> Weighed {
+        Weighed {
+            iteration,
+            replicas,
+        }
+    }
+
+    /// The last where it is no worse than the given blob; else the best
+    /// snapshot; the given blob only where all are worse and it carries
+    /// the effect named (else the best of the worse ones, the blob the
+    /// effect asks for). Figures from seed 83's viscous + drag (given
+    /// 0.204; last 1.354; snapshots 0.438, 0.9, 1.1).
+    #[test]
+    fn the_given_blob_is_kept_only_where_every_model_is_worse_and_it_carries_the_effect() {
+        let snaps = [w(0, 0.438), w(3000, 0.9), w(6000, 1.1)];
+        assert_eq!(
+            choose(w(12_000, 0.1), &snaps, 0.204, true),
+            Kept::Iteration(12_000)
+        );
+        assert_eq!(choose(w(12_000, 1.354), &snaps, 0.204, true), Kept::Given);
+        assert_eq!(
+            choose(w(12_000, 1.354), &snaps, 0.204, false),
+            Kept::Iteration(0)
+        );
+        assert_eq!(
+            choose(w(12_000, 1.354), &snaps, 0.5, true),
+            Kept::Iteration(0)
+        );
+        assert_eq!(choose(w(12_000, 1.354), &[], 0.204, true), Kept::Given);
+        assert_eq!(
+            choose(w(12_000, 1.354), &[], 0.204, false),
+            Kept::Iteration(12_000)
+        );
     }
 }
