@@ -26,6 +26,13 @@
 //! `Q` at every swing; drag's grows and Coulomb friction's falls as the
 //! swing dies down, and the forgetting follows them: the `Q` read is at
 //! the swing `exp(Sy / S0)`, the memory's mean, which is reported with it.
+//!
+//! The same line over the last third of the recording so far
+//! ([`super::last_third`], as a swing's envelope is read) is reported
+//! instead where it is sharp ([`WINDOW_SHARP`]): the memory lags a last
+//! third that holds fewer than about its 40 half swings.
+
+use super::last_third::{LastThird, Sums};
 
 /// The least memory, half swings: a half swing keeps `1 - 1 / memory` of
 /// its weight for each one after it.
@@ -58,6 +65,15 @@ pub(crate) const HOLD: f32 = 0.08;
 /// The smallest amplitude read, rad: below it a tracker's noise and a
 /// rig at rest make half swings of their own.
 pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
+/// The smallest amplitude the last third's fit reads, rad (a swing's
+/// envelope reads to the tracker's noise).
+pub(crate) const READ_AMPLITUDE: f32 = 0.01;
+/// The largest relative standard deviation of the last third's `Q` that
+/// is reported; a wider one gives way to the memory's. At 0.2, the 10 to
+/// 20 min lab recordings of seed 41 fell from 90% within 25% to 82% (a
+/// last third deep in small swings reads the tracker's noise); at 0.1,
+/// 90% (docs/damping.md).
+pub(crate) const WINDOW_SHARP: f32 = 0.1;
 /// The most a half swing's duration strays from the mean's, as a share of
 /// it, to be read (noise's half swings have any duration).
 pub(crate) const DURATION_SPREAD: f32 = 0.3;
@@ -79,17 +95,19 @@ pub(crate) struct Decay {
     since_turn: f32,
     /// Half swings read (at most `u16::MAX`).
     n: u16,
-    /// The forgetting sums (module docs).
-    s0: f32,
-    s1: f32,
-    s2: f32,
-    sy: f32,
-    sty: f32,
-    syy: f32,
+    /// The forgetting sums (module docs; `sd` unused).
+    sums: Sums,
     /// The half swing's duration, s, forgotten alike.
     half: f32,
-    /// `Q`, its standard deviation and the swing it is at, after the last
-    /// half swing.
+    /// The memory's `Q`, its standard deviation and the swing it is at
+    /// (held as [`HOLD`] says).
+    held: Option<(f32, f32, f32)>,
+    /// Seconds since the first step.
+    clock: f32,
+    /// The half swings of the last third ([`super::last_third`]).
+    window: LastThird,
+    /// The `Q` reported, its standard deviation and swing: the last
+    /// third's where it is sharp ([`WINDOW_SHARP`]), else the memory's.
     q: Option<(f32, f32, f32)>,
 }
 
@@ -98,6 +116,7 @@ impl Decay {
     pub(crate) fn tick(&mut self, dt: f32) {
         self.since += dt;
         self.since_turn += dt;
+        self.clock += dt;
     }
 
     /// A turning point: the half swing it ends, of amplitude `a` where
@@ -112,23 +131,43 @@ impl Decay {
 
     /// A half swing of amplitude `a` and duration `length`, s, ended.
     fn half_swing(&mut self, a: f32, length: f32) {
-        let d = self.since;
         let steady = self.n < MIN_HALVES / 2
             || libm::fabsf(length - self.half) <= DURATION_SPREAD * self.half;
-        if !(a >= MIN_AMPLITUDE && d > 0.0 && length > 0.0 && steady) {
+        if !(a >= READ_AMPLITUDE && length > 0.0 && steady) {
+            return;
+        }
+        self.window.push(a, length, self.clock);
+        self.memory(a, length);
+        let w = self.window.sums(self.clock);
+        let window = if w.s0 >= f32::from(MIN_HALVES) {
+            fit(&w, w.sd / w.s0)
+        } else {
+            None
+        };
+        self.q = match window {
+            Some(q) if q.1 <= WINDOW_SHARP * q.0 => Some(q),
+            _ => self.held,
+        };
+    }
+
+    /// A half swing of at least [`MIN_AMPLITUDE`] into the memory's fit.
+    fn memory(&mut self, a: f32, length: f32) {
+        let d = self.since;
+        if !(a >= MIN_AMPLITUDE && d > 0.0) {
             return;
         }
         self.since = 0.0;
         let memory = MEMORY.max(MEMORY_SHARE * f32::from(self.n));
         let f = 1.0 - 1.0 / memory;
-        let (s0, s1) = (self.s0, self.s1);
-        self.s2 = f * (self.s2 - 2.0 * d * s1 + d * d * s0);
-        self.s1 = f * (s1 - d * s0);
-        self.sty = f * (self.sty - d * self.sy);
+        let m = &mut self.sums;
+        let (s0, s1) = (m.s0, m.s1);
+        m.s2 = f * (m.s2 - 2.0 * d * s1 + d * d * s0);
+        m.s1 = f * (s1 - d * s0);
+        m.sty = f * (m.sty - d * m.sy);
         let y = libm::logf(a);
-        self.s0 = f * s0 + 1.0;
-        self.sy = f * self.sy + y;
-        self.syy = f * self.syy + y * y;
+        m.s0 = f * s0 + 1.0;
+        m.sy = f * m.sy + y;
+        m.syy = f * m.syy + y * y;
         self.half = if self.n == 0 {
             length
         } else {
@@ -137,41 +176,15 @@ impl Decay {
         self.n = self.n.saturating_add(1);
         // A fit no better than HOLD keeps the last one that was, where
         // there is one: a swing dying into the noise reads nothing new.
-        let fit = self.fit();
+        let fit = if self.n < MIN_HALVES {
+            None
+        } else {
+            fit(&self.sums, self.half)
+        };
         let sharp = |q: &Option<(f32, f32, f32)>| q.is_some_and(|(q, std, _)| std <= HOLD * q);
-        if sharp(&fit) || !sharp(&self.q) {
-            self.q = fit;
+        if sharp(&fit) || !sharp(&self.held) {
+            self.held = fit;
         }
-    }
-
-    /// `Q` and its standard deviation from the sums (module docs); `None`
-    /// before [`MIN_HALVES`] half swings, or where the swing does not
-    /// decay.
-    fn fit(&self) -> Option<(f32, f32, f32)> {
-        if self.n < MIN_HALVES {
-            return None;
-        }
-        let det = self.s0 * self.s2 - self.s1 * self.s1;
-        if det.is_nan() || det <= 0.0 {
-            return None;
-        }
-        let slope = (self.s0 * self.sty - self.s1 * self.sy) / det;
-        let intercept = (self.sy - slope * self.s1) / self.s0;
-        // The residuals' weighted sum of squares, `Syy - b0 Sy - b1 Sty`.
-        let rss = (self.syy - intercept * self.sy - slope * self.sty).max(0.0);
-        let dof = (self.s0 - 2.0).max(1.0);
-        let slope_std = STD_SCALE * libm::sqrtf(rss / dof * self.s0 / det);
-        let gamma = -slope;
-        if gamma.is_nan() || gamma <= 0.0 {
-            return None;
-        }
-        let omega = core::f32::consts::PI / self.half;
-        let q = omega / (2.0 * gamma);
-        // The swing the fit is at: the weighted mean of `ln a`.
-        let swing = libm::expf(self.sy / self.s0);
-        let relative = slope_std / gamma;
-        let std = q * libm::sqrtf(relative * relative + STD_FLOOR * STD_FLOOR);
-        Some((q, std, swing))
     }
 
     /// Half swings read so far (each at least [`MIN_AMPLITUDE`]).
@@ -187,6 +200,33 @@ impl Decay {
             None => (None, None, None),
         }
     }
+}
+
+/// `Q`, its standard deviation and the swing it is at from the sums `s`
+/// of `ln a` against time (module docs) and the mean half swing `half`,
+/// s; `None` where the swing does not decay.
+fn fit(s: &Sums, half: f32) -> Option<(f32, f32, f32)> {
+    let det = s.s0 * s.s2 - s.s1 * s.s1;
+    if det.is_nan() || det <= 0.0 {
+        return None;
+    }
+    let slope = (s.s0 * s.sty - s.s1 * s.sy) / det;
+    let intercept = (s.sy - slope * s.s1) / s.s0;
+    // The residuals' weighted sum of squares, `Syy - b0 Sy - b1 Sty`.
+    let rss = (s.syy - intercept * s.sy - slope * s.sty).max(0.0);
+    let dof = (s.s0 - 2.0).max(1.0);
+    let slope_std = STD_SCALE * libm::sqrtf(rss / dof * s.s0 / det);
+    let gamma = -slope;
+    if gamma.is_nan() || gamma <= 0.0 || half.is_nan() || half <= 0.0 {
+        return None;
+    }
+    let omega = core::f32::consts::PI / half;
+    let q = omega / (2.0 * gamma);
+    // The swing the fit is at: the weighted mean of `ln a`.
+    let swing = libm::expf(s.sy / s.s0);
+    let relative = slope_std / gamma;
+    let std = q * libm::sqrtf(relative * relative + STD_FLOOR * STD_FLOOR);
+    Some((q, std, swing))
 }
 
 #[cfg(test)]
