@@ -15,7 +15,7 @@
 //! up to [`BLOCKS`] blocks of eight floats, and a few dozen flops a block
 //! at each half swing.
 
-/// Blocks kept: above the about 20 a last third spans (the latest one is
+/// Blocks kept: above the about 10 a last third spans (the latest one is
 /// extended where they are all in use).
 pub(crate) const BLOCKS: usize = 12;
 /// The share of the recording so far a block spans before the next half
@@ -128,10 +128,7 @@ impl LastThird {
     /// The window's sums, their times from the latest half swing (`now`,
     /// seconds into the recording).
     pub(crate) fn sums(&self, now: f32) -> Sums {
-        let mut total = Sums {
-            origin: 0.0,
-            ..Sums::default()
-        };
+        let mut total = Sums::default();
         for b in self.kept() {
             total.add(&b.shifted(b.origin - now));
         }
