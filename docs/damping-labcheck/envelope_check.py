@@ -66,15 +66,17 @@ def main(lo, hi):
     near = lambda x, y: x is not None and abs(x / y - 1) <= 0.25
     print(f'seeds {lo}..{hi}: {len(rows)} recordings with an envelope Q of 30..1000 over the last third; '
           f'{len(refused)} refused by the import: {refused}\n')
-    print('| from the last third\'s swing | n | Q within 25% of the envelope | envelope within 2 std | '
+    print('| last third (its swing from, or its envelope) | n | Q within 25% of the envelope | envelope within 2 std | '
           'Q within 25% of the truth at its own swing | of the truth at the envelope\'s swing | '
           'envelope within 25% of the truth at its swing |')
     print('| --- | --- | --- | --- | --- | --- | --- |')
-    for low in (0.0, 0.03, 0.05):
-        h = [r for r in rows if r[3][1] >= low]
+    valid = lambda e, t: near(e[0], t(e[1]))
+    for low in (0.0, 0.03, 0.05, 'valid'):
+        h = [r for r in rows if (valid(r[3], r[4]) if low == 'valid' else r[3][1] >= low)]
         n = max(1, len(h))
         pct = lambda k: f'{k} ({100 * k / n:.0f}%)'
-        print(f'| {low:.2f} rad | {len(h)} | '
+        name = 'the envelope within 25% of the truth' if low == 'valid' else f'{low:.2f} rad'
+        print(f'| {name} | {len(h)} | '
               f'{pct(sum(near(q, e[0]) for q, s, sw, e, t in h))} | '
               f'{pct(sum(q is not None and abs(q - e[0]) <= 2 * s for q, s, sw, e, t in h))} | '
               f'{pct(sum(near(q, t(sw)) for q, s, sw, e, t in h if sw))} | '

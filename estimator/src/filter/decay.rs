@@ -29,8 +29,10 @@
 //!
 //! The same line over the last third of the recording so far
 //! ([`super::last_third`], as a swing's envelope is read) is reported
-//! instead where it is sharp ([`WINDOW_SHARP`]): the memory lags a last
-//! third that holds fewer than about its 40 half swings.
+//! instead where it is sharp enough ([`WINDOW_SHARP`]) at a swing above
+//! the noise ([`WINDOW_SWING`]): the memory lags a last third that holds
+//! fewer than about its 40 half swings. The reported standard deviation
+//! adds [`SPREAD`] of `Q` to the fit's.
 
 use super::last_third::{LastThird, Sums};
 
@@ -69,11 +71,15 @@ pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
 /// envelope reads to the tracker's noise).
 pub(crate) const READ_AMPLITUDE: f32 = 0.01;
 /// The largest relative standard deviation of the last third's `Q` that
-/// is reported; a wider one gives way to the memory's. At 0.2, the 10 to
-/// 20 min lab recordings of seed 41 fell from 90% within 25% to 82% (a
-/// last third deep in small swings reads the tracker's noise); at 0.1,
-/// 90% (docs/damping.md).
-pub(crate) const WINDOW_SHARP: f32 = 0.1;
+/// is reported; a wider one gives way to the memory's.
+pub(crate) const WINDOW_SHARP: f32 = 0.3;
+/// The smallest swing, rad, at which the last third's `Q` is reported (a
+/// last third deep in small swings reads the tracker's noise).
+pub(crate) const WINDOW_SWING: f32 = 0.02;
+/// `Q`'s relative spread over the swings a last third holds, and between
+/// ways of reading its envelope: added to the reported standard deviation
+/// in quadrature.
+pub(crate) const SPREAD: f32 = 0.1;
 /// The most a half swing's duration strays from the mean's, as a share of
 /// it, to be read (noise's half swings have any duration).
 pub(crate) const DURATION_SPREAD: f32 = 0.3;
@@ -145,7 +151,7 @@ impl Decay {
             None
         };
         self.q = match window {
-            Some(q) if q.1 <= WINDOW_SHARP * q.0 => Some(q),
+            Some(q) if q.1 <= WINDOW_SHARP * q.0 && q.2 >= WINDOW_SWING => Some(q),
             _ => self.held,
         };
     }
@@ -196,7 +202,10 @@ impl Decay {
     /// swing (rad).
     pub(crate) fn q_factor(&self) -> (Option<f32>, Option<f32>, Option<f32>) {
         match self.q {
-            Some((q, std, swing)) => (Some(q), Some(std), Some(swing)),
+            Some((q, std, swing)) => {
+                let spread = SPREAD * q;
+                (Some(q), Some(libm::sqrtf(std * std + spread * spread)), Some(swing))
+            }
             None => (None, None, None),
         }
     }
@@ -249,8 +258,9 @@ mod tests {
         let (q, std, _) = decay.q_factor();
         let (q, std) = (q.unwrap(), std.unwrap());
         assert!((q / (omega / c) - 1.0).abs() < 0.02, "{q}");
-        // Clean: the std is the floor's.
-        assert!((std / q - STD_FLOOR).abs() < 1e-3, "{std}");
+        // Clean: the std is the floor's and the spread's.
+        let floor = libm::sqrtf(STD_FLOOR * STD_FLOOR + SPREAD * SPREAD);
+        assert!((std / q - floor).abs() < 1e-3, "{std}");
         // Coulomb: the amplitude falls by a constant a half swing, its Q
         // with it (at 0.45 of the amplitude, 0.66 of the Q: the memory lags).
         let mut decay = Decay::default();
