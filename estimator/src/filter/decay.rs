@@ -112,8 +112,9 @@ pub(crate) struct Decay {
     clock: f32,
     /// The half swings of the last third ([`super::last_third`]).
     window: LastThird,
-    /// The `Q` reported, its standard deviation and swing: the last
-    /// third's where it is sharp ([`WINDOW_SHARP`]), else the memory's.
+    /// The `Q` reported, its standard deviation (with [`SPREAD`]) and
+    /// swing: the last third's where it is sharp ([`WINDOW_SHARP`]), else
+    /// the memory's.
     q: Option<(f32, f32, f32)>,
 }
 
@@ -153,7 +154,8 @@ impl Decay {
         self.q = match window {
             Some(q) if q.1 <= WINDOW_SHARP * q.0 && q.2 >= WINDOW_SWING => Some(q),
             _ => self.held,
-        };
+        }
+        .map(|(q, std, swing)| (q, libm::hypotf(std, SPREAD * q), swing));
     }
 
     /// A half swing of at least [`MIN_AMPLITUDE`] into the memory's fit.
@@ -202,10 +204,7 @@ impl Decay {
     /// swing (rad).
     pub(crate) fn q_factor(&self) -> (Option<f32>, Option<f32>, Option<f32>) {
         match self.q {
-            Some((q, std, swing)) => {
-                let spread = SPREAD * q;
-                (Some(q), Some(libm::sqrtf(std * std + spread * spread)), Some(swing))
-            }
+            Some((q, std, swing)) => (Some(q), Some(std), Some(swing)),
             None => (None, None, None),
         }
     }

@@ -12,7 +12,6 @@
 //!    the one before it.
 //! 3. A release is a run of at least [`MIN_HALVES`] free half swings, from
 //!    the turning point it is let go at to the last one.
-//!
 //! 4. A run that begins no wider than [`CONTINUES`] times the end of the
 //!    run before it, with no hand between them, continues that run: noise
 //!    broke one swing's decay where it neared the hysteresis.
@@ -88,28 +87,29 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
             _ => {}
         }
     }
-    // A hand's lift between two runs: a half swing slower than a swing's,
-    // wide, and wider than the one before it (a swing dying into the
-    // noise, whose turning points the hysteresis misses, is slow but no
-    // wider).
+    // A half swing slower than a swing's: a rest or a hand.
+    let slow = |k: usize| halves[k].0 > 0.8 * period;
+    // A hand's lift between two runs: slow, wide, and wider than the half
+    // swing before it (a swing dying into the noise, whose turning points
+    // the hysteresis misses, is slow but no wider).
     let hand = |k: usize| {
-        let (d, a) = halves[k];
-        d > 0.8 * period && a >= FLOOR * largest && (k == 0 || a > CONTINUES * halves[k - 1].1)
+        let a = halves[k].1;
+        slow(k) && a >= FLOOR * largest && (k == 0 || a > CONTINUES * halves[k - 1].1)
     };
     let runs = continued(runs, &halves, hand);
     // A rest or a hand: a half swing outside the releases slower than a
     // swing's, or a still start or end of over MIN_OTHER periods.
     let inside = |k: usize| runs.iter().any(|&(f, e)| (f..e).contains(&k));
-    let slow = (0..halves.len()).any(|k| !inside(k) && halves[k].0 > 0.8 * period);
+    let slow_outside = (0..halves.len()).any(|k| !inside(k) && slow(k));
     let still_ends = t[turns[0]] - t[0] > MIN_OTHER * period
         || t[t.len() - 1] - t[turns[turns.len() - 1]] > MIN_OTHER * period;
-    (!runs.is_empty() && (slow || still_ends))
+    (!runs.is_empty() && (slow_outside || still_ends))
         .then(|| runs.iter().map(|&(f, e)| turns[f]..turns[e] + 1).collect())
 }
 
 /// The runs with each one that continues the run before it joined to it:
 /// one that begins no wider than [`CONTINUES`] times the last half swing
-/// of the one before, with no slow half swing between them (noise broke
+/// of the one before, with no hand's lift between them (noise broke
 /// one free swing's decay; a hand's lift widens the swing).
 fn continued(
     runs: Vec<(usize, usize)>,
@@ -209,8 +209,8 @@ mod tests {
     /// let go at 1.06 rad, drag and pivot friction, 12 Hz video with
     /// 0.0067 rad of noise and a 0.06 rad offset) that dies into the noise
     /// near the hysteresis over 183 s: one release, whatever the noise's
-    /// draw (before runs were continued, the first seed gave
-    /// two, the second a stub of 6 s that reads no `Q`).
+    /// draw (before runs were continued, the first seed gave two releases,
+    /// the second a stub of 6 s that reads no `Q`).
     #[test]
     fn a_swing_dying_into_the_noise_is_one_release() {
         use crate::data::lab::{Artefacts, Case, LabSpec, Stamps};
