@@ -4,7 +4,7 @@
 # (seed 1: 18 formats x 6 rigs, realistic variants and malformed files;
 # seed 2: the well-formed ones again, other rigs), run.py runs the binary
 # on each (60 s and 6 GiB a command), analyze.py sums up. From the
-# repository root, after `cargo build --release -p trainer`; about 15 min.
+# repository root, after `cargo build --release -p trainer`; about 8 min.
 set -e
 D=runs/import-check
 mkdir -p $D
