@@ -29,9 +29,10 @@
 //!
 //! The same line over the last third of the recording so far
 //! ([`super::last_third`], as a swing's envelope is read) is reported
-//! instead where it is sharp enough ([`WINDOW_SHARP`]): the memory lags a
-//! last third that holds fewer than about its 40 half swings. The reported standard deviation
-//! adds [`SPREAD`] of `Q` to the fit's.
+//! instead where it is sharp enough ([`WINDOW_SHARP`]), down to the
+//! envelope's own floor ([`READ_AMPLITUDE`]): the memory lags a last third
+//! that holds fewer than about its 40 half swings. The reported standard
+//! deviation adds [`SPREAD`] of `Q` to the fit's.
 
 use super::last_third::{LastThird, Sums};
 
