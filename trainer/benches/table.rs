@@ -14,7 +14,8 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use criterion::{Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput};
 use trainer_core::data::table::Table;
 
 /// Lines of the text read.
@@ -30,22 +31,24 @@ fn text() -> String {
     s
 }
 
-fn bench(c: &mut Criterion) {
-    let text = text();
-    let mut g = c.benchmark_group("table");
+/// A criterion group with this bench's settings: per line of the text.
+fn group<'c>(c: &'c mut Criterion, name: &str) -> BenchmarkGroup<'c, WallTime> {
+    let mut g = c.benchmark_group(name);
     g.warm_up_time(Duration::from_secs(1));
     g.measurement_time(Duration::from_secs(3));
     g.sample_size(10);
     g.throughput(Throughput::Elements(LINES));
+    g
+}
+
+fn bench(c: &mut Criterion) {
+    let text = text();
+    let mut g = group(c, "table");
     g.bench_function("parse", |b| {
         b.iter(|| Table::parse(Path::new("bench.csv"), black_box(&text)).map(|t| t.rows.len()))
     });
     g.finish();
-    let mut g = c.benchmark_group("table_peer");
-    g.warm_up_time(Duration::from_secs(1));
-    g.measurement_time(Duration::from_secs(3));
-    g.sample_size(10);
-    g.throughput(Throughput::Elements(LINES));
+    let mut g = group(c, "table_peer");
     g.bench_function("csv_reader", |b| {
         b.iter(|| {
             let mut reader = csv::ReaderBuilder::new()
