@@ -41,6 +41,7 @@ use crate::learn::config::TrainConfig;
 
 mod around;
 mod noise;
+mod pace;
 mod read;
 mod report;
 mod snapshot;
@@ -48,16 +49,13 @@ mod snapshot;
 pub use around::{
     ANEW_FACTOR, ANEW_ITERATIONS, FINE_TUNE_ITERATIONS, FINE_TUNE_ITERATIONS_LEAST, LENGTH_SPAN,
 };
+pub use pace::Pace;
 pub use read::BlobRead;
 pub use report::markdown;
 pub use snapshot::{Choice, Kept, Weighed};
 
-/// Seconds an iteration of a rig blob's training takes on the 2-core
-/// machine (128 windows of 128 steps, 64 wide), for the time estimate:
-/// 0.036 to 0.041 over the loop's runs (`docs/close-loop-rig/run.sh`).
-pub const SECONDS_PER_ITERATION: f64 = 0.04;
-
-/// Seconds the rest takes there, besides the replicas' forecasts:
+/// Seconds the rest takes on the reference machine ([`pace`]), besides
+/// the replicas' forecasts:
 /// drawing the rollouts, the export's choice of the filter's noise and
 /// the calibration (48 to 73 in those runs).
 pub const SECONDS_BESIDE: f64 = 75.0;
@@ -79,12 +77,12 @@ pub const BUDGET_SECONDS: f64 = 720.0;
 /// recording may take on 2 cores, a minute left for the reads.
 pub const LIMIT_SECONDS: f64 = 840.0;
 
-/// Seconds a run is estimated to take after the recordings are read: its
-/// `iterations`, the rest besides, and replicas lasting `replica_s`.
-fn estimated_seconds(iterations: usize, replica_s: f64) -> f64 {
-    iterations as f64 * SECONDS_PER_ITERATION
-        + SECONDS_BESIDE
-        + SECONDS_PER_REPLICA_SECOND * replica_s
+/// Seconds a run is estimated to take after the recordings are read, at
+/// the `pace` probed: its `iterations`, and the rest besides with
+/// replicas lasting `replica_s`, slowed as the training is.
+fn estimated_seconds(iterations: usize, replica_s: f64, pace: Pace) -> f64 {
+    iterations as f64 * pace.seconds_per_iteration
+        + (SECONDS_BESIDE + SECONDS_PER_REPLICA_SECOND * replica_s) * pace.slowdown()
 }
 
 /// A fine-tuning's iterations: those `asked`, or the `least` where those
@@ -94,6 +92,25 @@ fn within_budget(asked: usize, least: usize, estimate: impl Fn(usize) -> f64) ->
         least
     } else {
         asked
+    }
+}
+
+/// What the time estimate says of weighing a fine-tuning's snapshots
+/// (`snapshot`): `all` seconds for every copy, `room` left under
+/// [`LIMIT_SECONDS`] by the estimate (none where there are no copies).
+fn weighing_said(all: f64, room: f64) -> String {
+    let minutes = all.min(room) / 60.0;
+    if all <= 0.0 {
+        String::new()
+    } else if minutes < 0.5 {
+        format!(
+            ", and its snapshots weighed where its last model forecasts the recordings' replicas worse than the given blob only if the run is under {:.0} min by then",
+            LIMIT_SECONDS / 60.0
+        )
+    } else {
+        format!(
+            ", and up to {minutes:.0} more where its last model forecasts the recordings' replicas worse than the given blob (its snapshots are weighed)"
+        )
     }
 }
 
@@ -138,6 +155,8 @@ pub struct RigLoopReport {
     /// The time estimated before training, s, with the time the reading
     /// and diagnosis took before it.
     pub estimated_seconds: f64,
+    /// The training's pace probed before it (`pace`).
+    pub pace: Pace,
     /// The filter's noise pairs tried for the model kept, and their
     /// scores (`noise`).
     pub noise: Vec<export::NoiseCandidate>,
@@ -187,7 +206,9 @@ pub fn close_loop_rig(
     )?;
     let replicas = around::replicas(&plan.cfg, &parts, opts.rig, opts.g, dt);
     let replica_s = 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
-    let estimate = |iterations: usize| estimated_seconds(iterations, replica_s);
+    say("probing the training's pace on this machine");
+    let pace = Pace::probe(&plan.cfg, &out.join("probe"))?;
+    let estimate = |iterations: usize| estimated_seconds(iterations, replica_s, pace);
     let asked = plan.cfg.iterations;
     let iterations = if plan.cfg.warm_start.is_some() {
         within_budget(asked, opts.iterations_least, estimate)
@@ -209,7 +230,7 @@ pub fn close_loop_rig(
     let estimated = estimate(plan.cfg.iterations);
     let [lo, hi] = plan.cfg.length_range();
     say(&format!(
-        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min on 2 cores{}",
+        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min here (the training at {:.3} s an iteration){}",
         opts.rig.length_label(),
         plan.cfg.theta0[0],
         plan.cfg.theta0[1],
@@ -222,17 +243,11 @@ pub fn close_loop_rig(
             )),
         plan.start,
         estimated / 60.0,
-        if plan.cfg.snapshots.is_empty() {
-            String::new()
-        } else {
-            format!(
-                ", and up to {:.0} more where its last model forecasts the recordings' replicas worse than the given blob (its snapshots are weighed)",
-                (plan.cfg.snapshots.len() as f64 * estimate(0))
-                    .min(LIMIT_SECONDS - estimated)
-                    .max(0.0)
-                    / 60.0
-            )
-        }
+        pace.seconds_per_iteration,
+        weighing_said(
+            plan.cfg.snapshots.len() as f64 * estimate(0),
+            LIMIT_SECONDS - estimated
+        )
     ));
     let estimated = estimated + start.elapsed().as_secs_f64();
     // 3. Train, export, calibrate.
@@ -295,6 +310,7 @@ pub fn close_loop_rig(
         effect_reason: plan.effect_reason,
         config: plan.cfg,
         estimated_seconds: estimated,
+        pace,
         noise,
         kept,
         recordings,
@@ -308,9 +324,10 @@ pub fn close_loop_rig(
 mod tests {
     use super::*;
 
-    /// The time estimate of a run whose replicas last `replica_s`.
+    /// The time estimate of a run whose replicas last `replica_s`, on the
+    /// reference machine.
     fn estimate(replica_s: f64) -> impl Fn(usize) -> f64 {
-        move |n| estimated_seconds(n, replica_s)
+        move |n| estimated_seconds(n, replica_s, Pace::REFERENCE)
     }
 
     /// A lab recording of a minute and q2 (385 s) fine-tune at the full
@@ -323,5 +340,21 @@ mod tests {
         assert_eq!(within_budget(full, least, estimate(385.0)), full);
         assert_eq!(within_budget(full, least, estimate(600.0)), least);
         assert_eq!(within_budget(full, full, estimate(600.0)), full);
+    }
+
+    /// On a machine that trains at 0.1 s an iteration (2.5 times the
+    /// reference), a minute's lab recording falls back to the least, and
+    /// the rest of the estimate slows with it.
+    #[test]
+    fn a_slow_machine_fine_tunes_within_the_budget() {
+        let (full, least) = (FINE_TUNE_ITERATIONS, FINE_TUNE_ITERATIONS_LEAST);
+        let slow = Pace {
+            seconds_per_iteration: 0.1,
+        };
+        let here = move |n| estimated_seconds(n, 60.0, slow);
+        assert_eq!(within_budget(full, least, here), least);
+        let rest = SECONDS_BESIDE + SECONDS_PER_REPLICA_SECOND * 60.0;
+        assert!((here(0) - 2.5 * rest).abs() < 1e-9);
+        assert!((here(least) - (600.0 + 2.5 * rest)).abs() < 1e-9);
     }
 }

@@ -34,7 +34,7 @@ pub fn markdown(r: &RigLoopReport) -> String {
     };
     let _ = writeln!(
         s,
-        "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}).\n",
+        "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}, the training probed at {:.3} s an iteration).\n",
         r.blob.display(),
         r.effect_reason,
         c.lab.as_ref().map_or(0, |d| d.rollouts),
@@ -47,6 +47,7 @@ pub fn markdown(r: &RigLoopReport) -> String {
         c.seed,
         r.seconds / 60.0,
         r.estimated_seconds / 60.0,
+        r.pace.seconds_per_iteration,
     );
     if let Some(k) = &r.kept {
         kept(&mut s, k, r);
