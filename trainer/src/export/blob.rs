@@ -41,6 +41,7 @@ pub fn linear_to_blob(l: &Linear) -> (usize, usize, Vec<f32>, Vec<f32>) {
 
 /// The weight arena a [`Blob`] borrows from, as little-endian bytes, the
 /// family whose layout it has and the layout (the MLPs' hidden width).
+#[derive(Clone)]
 pub struct BlobParts {
     arena: Vec<u8>,
     family: Family,

@@ -19,6 +19,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use estimator::blob::{Family, FilterSpec};
 use estimator::{AUG_DIM, Estimator, LATENT_DIM, Model, PARAM_DIM};
+use rayon::prelude::*;
 use serde::Serialize;
 use trainer_core::calibrate::{
     CalibrateConfig, Calibration, LabHeldOut, calibrate, map_bytes, permissive,
@@ -146,7 +147,7 @@ pub fn export_selecting_noise(
     dir: &Path,
     out: &Path,
     candidates: &[(Option<f64>, f64)],
-    mut score: impl FnMut(&Model<'_>) -> Result<f64>,
+    score: impl Fn(&Model<'_>) -> Result<f64> + Sync,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
     export_choosing_noise(dir, out, candidates, 0.0, |m| Ok((score(m)?, None)))
 }
@@ -160,25 +161,38 @@ pub fn export_choosing_noise(
     out: &Path,
     candidates: &[(Option<f64>, f64)],
     tolerance: f64,
-    mut score: impl FnMut(&Model<'_>) -> Result<(f64, Option<f64>)>,
+    score: impl Fn(&Model<'_>) -> Result<(f64, Option<f64>)> + Sync,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
-    let mut prepared = Prepared::open(dir)?;
+    let prepared = Prepared::open(dir)?;
+    // Each candidate drafted and scored on its own (on as many cores as
+    // rayon has, each worker with its own copy of the run), in order.
+    let outcomes: Vec<_> = candidates
+        .par_iter()
+        .map_init(
+            || prepared.clone(),
+            |mine, &(q, r)| {
+                let opts = ExportOptions {
+                    q_latent: q,
+                    r_latent: Some(r),
+                    ..ExportOptions::default()
+                };
+                // A candidate whose filter cannot be exported (its gain
+                // schedule does not settle within the window) is refused,
+                // not fatal.
+                let scored = mine.draft(&opts).and_then(|(bytes, d)| {
+                    let m =
+                        Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
+                    let v = score(&m)?;
+                    Ok((v, bytes, d))
+                });
+                (q, r, opts, scored)
+            },
+        )
+        .collect();
     let mut scored = Vec::with_capacity(candidates.len());
     // Every scored draft, kept to calibrate and write the chosen one.
     let mut drafts: Vec<(f64, f64, ExportOptions, Vec<u8>, Draft)> = Vec::new();
-    for &(q, r) in candidates {
-        let opts = ExportOptions {
-            q_latent: q,
-            r_latent: Some(r),
-            ..ExportOptions::default()
-        };
-        // A candidate whose filter cannot be exported (its gain schedule
-        // does not settle within the window) is refused, not fatal.
-        let scored_draft = prepared.draft(&opts).and_then(|(bytes, d)| {
-            let m = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
-            let v = score(&m)?;
-            Ok((v, bytes, d))
-        });
+    for (q, r, opts, scored_draft) in outcomes {
         let (value, refused) = match scored_draft {
             Ok(((v, then), bytes, d)) if v.is_finite() && then.is_none_or(f64::is_finite) => {
                 drafts.push((v, then.unwrap_or(v), opts, bytes, d));
@@ -244,7 +258,7 @@ pub fn export_lab_scored(
     dir: &Path,
     out: &Path,
     tolerance: f64,
-    score: impl FnMut(&Model<'_>) -> Result<(f64, Option<f64>)>,
+    score: impl Fn(&Model<'_>) -> Result<(f64, Option<f64>)> + Sync,
 ) -> Result<(ExportInfo, Vec<NoiseCandidate>)> {
     export_choosing_noise(dir, out, &lab_pairs(), tolerance, score)
 }
@@ -259,6 +273,7 @@ fn lab_pairs() -> Vec<(Option<f64>, f64)> {
 
 /// A KLM run opened for export: its model loaded and `F` refitted over its
 /// training data, ready to make blobs with any filter settings.
+#[derive(Clone)]
 struct Prepared {
     cfg: TrainConfig,
     state: run::RunState,
