@@ -180,8 +180,8 @@ pub fn export_choosing_noise(
                 // schedule does not settle within the window) is refused,
                 // not fatal.
                 let scored = mine.draft(&opts).and_then(|(bytes, d)| {
-                    let m =
-                        Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
+                    let m = Model::from_bytes(&bytes)
+                        .map_err(|e| anyhow::anyhow!("draft blob: {e}"))?;
                     let v = score(&m)?;
                     Ok((v, bytes, d))
                 });
