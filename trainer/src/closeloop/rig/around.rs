@@ -40,9 +40,10 @@ pub const ANEW_FACTOR: usize = 3;
 pub const FINE_TUNE_ITERATIONS: usize = 12_000;
 
 /// Iterations of a fine-tuning where [`FINE_TUNE_ITERATIONS`] would run
-/// past [`super::BUDGET_SECONDS`] by the time estimate (a recording of
-/// many minutes, whose replicas take long to score): the count before,
-/// which met the goal on seed 61's ten recordings.
+/// past [`super::BUDGET_SECONDS`] by the time estimate at the machine's
+/// pace (`pace`; a recording of many minutes on a machine 1.2 times
+/// slower than the reference): the count before, which met the goal on
+/// seed 61's ten recordings.
 pub const FINE_TUNE_ITERATIONS_LEAST: usize = 6000;
 
 /// The fewest iterations a fine-tuning runs for its time budget, on a
