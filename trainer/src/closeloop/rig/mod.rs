@@ -59,10 +59,10 @@ pub use snapshot::{Choice, Kept, Weighed};
 /// the replicas' forecasts: drawing the rollouts (twice: the probe's and
 /// the training's), the export's choice of the filter's noise and the
 /// calibration. Measured on a 2-core machine that trains 2.6 times
-/// slower, divided by that: 360 s for q2 (replicas of 385 s) and about
-/// 160 s for a 40 s lab recording, each run's own from its pace probe
-/// to its report; set a little over those (0.26 s a replica second
-/// and 50 s besides would meet both).
+/// slower, divided by that: 350 s for q2 (replicas of 385 s) and 130 s
+/// for a 64 s lab recording (replicas of about 50 s), each run's own
+/// but its training; set so that both are estimated about a minute
+/// over.
 pub const SECONDS_BESIDE: f64 = 60.0;
 
 /// Seconds the choice of the filter's noise takes on the reference
