@@ -60,7 +60,7 @@ pub use snapshot::{Choice, Kept, Weighed};
 /// the training's), the export's choice of the filter's noise and the
 /// calibration. Measured on a 2-core machine that trains 2.6 times
 /// slower, divided by that: 350 s for q2 (replicas of 385 s) and 130 s
-/// for a 64 s lab recording (replicas of about 50 s), each run's own
+/// for a 46 s lab recording (replicas of about 50 s), each run's own
 /// but its training; set so that both are estimated about a minute
 /// over.
 pub const SECONDS_BESIDE: f64 = 60.0;
