@@ -49,7 +49,7 @@ pub const FINE_TUNE_ITERATIONS_LEAST: usize = 6000;
 /// The fewest iterations a fine-tuning runs for its time budget, on a
 /// machine too slow for [`FINE_TUNE_ITERATIONS_LEAST`] (`pace`): a
 /// quarter of the default.
-pub const FINE_TUNE_ITERATIONS_FLOOR: usize = 3000;
+pub const FINE_TUNE_ITERATIONS_FLOOR: usize = FINE_TUNE_ITERATIONS / 4;
 
 /// Iterations of a training anew unless asked: three times the loop's
 /// default of 1500 (at 6000 the encoder rig read one swing 5% off,
