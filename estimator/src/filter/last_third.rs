@@ -21,6 +21,9 @@ pub(crate) const BLOCKS: usize = 12;
 /// The share of the recording so far a block spans before the next half
 /// swing starts another.
 pub(crate) const SPAN_SHARE: f32 = 1.0 / 24.0;
+/// Parts the window's blocks are split into to see its decay bend
+/// (`super::decay`).
+pub(crate) const PARTS: usize = 3;
 /// The share of the recording so far the window covers: its last third.
 pub(crate) const WINDOW_SHARE: f32 = 1.0 / 3.0;
 
@@ -134,6 +137,19 @@ impl LastThird {
         }
         total
     }
+
+    /// The sums of the window's blocks in [`PARTS`] consecutive parts,
+    /// the oldest first (as [`LastThird::sums`]; a part of none where
+    /// there are fewer blocks).
+    pub(crate) fn parts(&self, now: f32) -> [Sums; PARTS] {
+        let mut parts = [Sums::default(); PARTS];
+        for (i, b) in self.kept().iter().enumerate() {
+            if let Some(p) = parts.get_mut(i * PARTS / self.len.max(1)) {
+                p.add(&b.shifted(b.origin - now));
+            }
+        }
+        parts
+    }
 }
 
 #[cfg(test)]
@@ -144,6 +160,38 @@ mod tests {
     /// The window's sums are those of the half swings in the last third
     /// (to within a block's span of its start), for an hour of half
     /// swings a second, in no more than [`BLOCKS`] blocks.
+    /// The parts' sums add up to the window's (to rounding), each part
+    /// holding consecutive blocks, the oldest first.
+    #[test]
+    fn the_parts_add_up_to_the_window() {
+        let mut w = LastThird::default();
+        for k in 0..600 {
+            let t = 0.7 * k as f32;
+            w.push(0.5 * libm::expf(-0.002 * t), 0.7, t);
+        }
+        let now = 0.7 * 599.0;
+        let whole = w.sums(now);
+        let parts = w.parts(now);
+        let mut total = Sums::default();
+        for p in &parts {
+            assert!(p.s0 > 0.0, "{parts:?}");
+            total.add(p);
+        }
+        for (a, b) in [
+            (total.s0, whole.s0),
+            (total.s1, whole.s1),
+            (total.s2, whole.s2),
+            (total.sy, whole.sy),
+            (total.sty, whole.sty),
+            (total.syy, whole.syy),
+        ] {
+            assert!((a - b).abs() <= 1e-4 * b.abs().max(1.0), "{a} {b}");
+        }
+        // Older parts lie further back: their mean times are more negative.
+        let mean_t = |p: &Sums| p.s1 / p.s0;
+        assert!(mean_t(&parts[0]) < mean_t(&parts[1]) && mean_t(&parts[1]) < mean_t(&parts[2]));
+    }
+
     #[test]
     fn the_window_sums_the_last_third() {
         let mut w = LastThird::default();
