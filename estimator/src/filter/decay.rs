@@ -32,7 +32,9 @@
 //! instead where it is sharp enough ([`WINDOW_SHARP`]), down to the
 //! envelope's own floor ([`READ_AMPLITUDE`]): the memory lags a last third
 //! that holds fewer than about its 40 half swings. The reported standard
-//! deviation adds [`SPREAD`] of `Q` to the fit's.
+//! deviation adds [`SPREAD`] of `Q` to the fit's, and to the last
+//! third's its bend ([`bend`]: how far the decay rates of its parts
+//! differ, where a line through a curve reads `Q` off).
 
 use super::last_third::{LastThird, PARTS, Sums};
 
