@@ -157,9 +157,6 @@ impl LastThird {
 mod tests {
     use super::*;
 
-    /// The window's sums are those of the half swings in the last third
-    /// (to within a block's span of its start), for an hour of half
-    /// swings a second, in no more than [`BLOCKS`] blocks.
     /// The parts' sums add up to the window's (to rounding), each part
     /// holding consecutive blocks, the oldest first.
     #[test]
@@ -192,6 +189,9 @@ mod tests {
         assert!(mean_t(&parts[0]) < mean_t(&parts[1]) && mean_t(&parts[1]) < mean_t(&parts[2]));
     }
 
+    /// The window's sums are those of the half swings in the last third
+    /// (to within a block's span of its start), for an hour of half
+    /// swings a second, in no more than [`BLOCKS`] blocks.
     #[test]
     fn the_window_sums_the_last_third() {
         let mut w = LastThird::default();
