@@ -12,8 +12,8 @@
 //!    the noise (friction stops a pendulum) up to where it does; the
 //!    report says where (`parts::split_all`, `parts::usable_part`).
 //! 3. Diagnose each recording's first part from its swings
-//!    (`trainer_core::diagnose::energy`). Sensor effects are corrected in
-//!    the data: the offset found is subtracted from the angle
+//!    (`trainer_core::diagnose::energy`). The swing's centre, where
+//!    significant, is subtracted from the angle
 //!    (`parts::diagnose_first_part`; each recording becomes a
 //!    `parts::Part`).
 //! 4. Train the declared KLM around the first parts (lengths on a grid of
@@ -147,7 +147,8 @@ pub struct RecordingScore {
     pub at_rest_after_s: Option<f64>,
     /// The swing diagnosis of its first part.
     pub diagnosis: SwingDiagnosis,
-    /// The offset subtracted from its angle, rad.
+    /// The swing's centre subtracted from its angle, rad (0 where not
+    /// significant).
     pub offset_corrected: f64,
     /// The declared physics' length fitted to its first part.
     pub length_physics: f64,
@@ -221,7 +222,7 @@ pub fn close_loop(
     // 1. Both readings.
     let (recs, ds) = parts::read_both(inputs, &opts.import)?;
     let dt = ds.sidecar.dt;
-    // 2.-3. Split, diagnose the first part, correct the offset.
+    // 2.-3. Split, diagnose the first part, centre the swing.
     let parts = parts::split_all(&recs, &ds, opts.import.start, &say)?;
     let fit_ds = parts::first_parts(&parts, &ds.sidecar);
     data::write(&fit_ds, out, "fit")?;

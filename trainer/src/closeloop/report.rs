@@ -123,11 +123,11 @@ pub fn markdown(r: &CloseLoopReport) -> String {
         seed = r.options.seed
     ));
     s.push_str(&lengths(r));
-    s.push_str("## Diagnosis (swings of the first part)\n\n| recording | verdict | turning points | amplitude (rad) | effects (95% CI) |\n| --- | --- | --- | --- | --- |\n");
+    s.push_str("## Diagnosis (swings of the first part)\n\n| recording | verdict | turning points | amplitude (rad) | effects (95% CI) | centre subtracted (rad) |\n| --- | --- | --- | --- | --- | --- |\n");
     for x in &r.recordings {
         let d = &x.diagnosis;
         s.push_str(&format!(
-            "| {} | {} | {} | {:.3} -> {:.3} | {} |\n",
+            "| {} | {} | {} | {:.3} -> {:.3} | {} | {:+.4} |\n",
             x.source,
             d.verdict,
             d.turns,
@@ -144,7 +144,8 @@ pub fn markdown(r: &CloseLoopReport) -> String {
                     e.ci[1]
                 ))
                 .collect::<Vec<_>>()
-                .join("; ")
+                .join("; "),
+            x.offset_corrected,
         ));
     }
     if let Some(d) = r.recordings.first() {
@@ -190,7 +191,7 @@ pub fn markdown(r: &CloseLoopReport) -> String {
     ));
     match &r.effect_added {
         Some(e) => s.push_str(&format!(
-            "## Effect added\n\n`{}` as the second physical parameter, trained over [{}, {}]: {}. Sensor offsets were subtracted from the angle.\n\n",
+            "## Effect added\n\n`{}` as the second physical parameter, trained over [{}, {}]: {}.\n\n",
             e.name, e.range[0], e.range[1], r.effect_reason
         )),
         None => s.push_str(&format!("## Effect added\n\nNone: {}.\n\n", r.effect_reason)),

@@ -57,7 +57,7 @@ pub(super) fn recording(
         ],
         at_rest_after_s: part.end.at_rest_after_s,
         diagnosis: d.clone(),
-        offset_corrected: part.offset,
+        offset_corrected: part.centre,
         length_physics,
         length_before: ob.params[0],
         trusted_before: ob.trust.is_trusted(),

@@ -102,8 +102,10 @@ pub struct SwingDiagnosis {
     pub energy_scatter: f64,
     /// Weighted variance of the centres about their mean (1 = the noise).
     pub centre_scatter: f64,
-    /// The centres' weighted mean and its standard error, rad: the
-    /// angle's zero, named as an offset or not ([`SwingDiagnosis::centre_found`]).
+    /// The centres' weighted mean and its standard error, rad.
+    ///
+    /// The swing's zero, named as an offset or not
+    /// ([`SwingDiagnosis::centre_found`]).
     pub centre: [f64; 2],
     /// How it was decided, in words.
     pub criterion: String,

@@ -365,7 +365,7 @@ mod tests {
             series: Rollout { id: 0, t, xs },
             cut: 3000,
             diagnosis,
-            offset: 0.0,
+            centre: 0.0,
             end: UsablePart {
                 from: 0,
                 from_s: 0.0,

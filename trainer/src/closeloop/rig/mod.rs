@@ -137,9 +137,6 @@ pub struct RigRecording {
     pub part_used: Option<String>,
     /// The first part's diagnosis.
     pub diagnosis: SwingDiagnosis,
-    /// What was subtracted from the angle before the blobs read it, rad:
-    /// the first part's swing centre, where significant.
-    pub centred: f64,
     /// The length the first part's swings give, m (the period's).
     pub length_period: f64,
     /// The given blob's reading of the held-out part.
@@ -308,7 +305,6 @@ pub fn close_loop_rig(
                 steps: [p.series.xs.len(), p.series.xs.len() - p.cut],
                 part_used: p.end.said(),
                 diagnosis: d.clone(),
-                centred: p.offset,
                 length_period: opts.rig.length(opts.g, d.w * d.w),
                 before: read::held_out(&given, p, dt)?,
                 after: read::held_out(&after, p, dt)?,

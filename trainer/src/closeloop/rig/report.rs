@@ -156,11 +156,12 @@ fn recording(s: &mut String, rec: &RigRecording, r: &RigLoopReport) {
     if let Some(why) = &rec.part_used {
         let _ = writeln!(s, "Not all of it: {why}.\n");
     }
-    if rec.centred != 0.0 {
+    let centre = d.centre_found();
+    if centre != 0.0 {
         let _ = writeln!(
             s,
             "The first part's swings centre on {:+.4} rad, subtracted from the angle before the blobs and the physics read it.\n",
-            rec.centred
+            centre
         );
     }
     let _ = writeln!(
