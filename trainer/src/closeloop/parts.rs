@@ -325,7 +325,11 @@ mod tests {
             if offset == 0.0 {
                 assert_eq!(part.centre, 0.0, "{:?}", d.centre);
             } else {
-                assert!(d.centre[0].abs() > 4.0 * d.centre[1], "{:?}", d.centre);
+                assert!(
+                    d.centre[0].abs() > trainer_core::diagnose::energy::T_KEEP * d.centre[1],
+                    "{:?}",
+                    d.centre
+                );
                 assert!(
                     (part.centre - offset).abs() < 1e-3,
                     "centred by {} where the swing is {offset} off, {:?}",

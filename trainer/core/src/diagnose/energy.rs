@@ -114,9 +114,7 @@ pub struct SwingDiagnosis {
 impl SwingDiagnosis {
     /// The swing's centre where it lies over [`T_KEEP`] standard errors
     /// from zero, else 0, rad: what to subtract from the angle to centre
-    /// the swing. Below [`OFFSET_RESOLUTION`] it is not named as an
-    /// effect, yet a forecast of a swing of 0.2 rad about a zero 0.005
-    /// rad off carries a third of a good model's error in that offset.
+    /// the swing, also below the [`OFFSET_RESOLUTION`] named as an effect.
     pub fn centre_found(&self) -> f64 {
         let [c, se] = self.centre;
         if significant(c, se) { c } else { 0.0 }
