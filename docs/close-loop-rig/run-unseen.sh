@@ -3,7 +3,7 @@
 # of an unseen seed (the first argument; 67 unless given): 67 was looked at
 # only after the replicas' noise choice was fixed (run.sh's seed 61 was: its
 # viscous recording showed the miss the replicas mend), 83 only after the
-# fine-tuning's 12000 iterations were. Each run's report under
+# fine-tuning's 12000 iterations were, 89 only after all of it. Each run's report under
 # runs/cl-rig-labSEED-*, then the summary table (collect.py SEED). From the
 # repository root, after `cargo build --release -p trainer`.
 
