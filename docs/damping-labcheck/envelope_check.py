@@ -77,13 +77,13 @@ def main(lo, hi, gen):
           'Q within 25% of the truth at its own swing | of the truth at the envelope\'s swing | '
           'envelope within 25% of the truth at its swing |')
     print('| --- | --- | --- | --- | --- | --- | --- |')
-    valid = lambda e, t: near(e[0], t(e[1]))
-    for low in (0.0, 0.03, 0.05, 'valid', 'not forced'):
-        keep = {'valid': lambda r: valid(r[3], r[4]), 'not forced': lambda r: r[5] != 'forcing'}
-        h = [r[:5] for r in rows if keep.get(low, lambda r: r[3][1] >= low)(r)]
+    groups = [(f'{low:.2f} rad', lambda r, low=low: r[3][1] >= low) for low in (0.0, 0.03, 0.05)]
+    groups += [('the envelope within 25% of the truth', lambda r: near(r[3][0], r[4](r[3][1]))),
+               ('not forced', lambda r: r[5] != 'forcing')]
+    for name, keep in groups:
+        h = [r[:5] for r in rows if keep(r)]
         n = max(1, len(h))
         pct = lambda k: f'{k} ({100 * k / n:.0f}%)'
-        name = {'valid': 'the envelope within 25% of the truth', 'not forced': 'not forced'}.get(low) or f'{low:.2f} rad'
         print(f'| {name} | {len(h)} | '
               f'{pct(sum(near(q, e[0]) for q, s, sw, e, t in h))} | '
               f'{pct(sum(q is not None and abs(q - e[0]) <= 2 * s for q, s, sw, e, t in h))} | '
