@@ -275,11 +275,15 @@ pub fn close_loop_rig(
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
         let room = || start.elapsed().as_secs_f64() + estimate(0) <= LIMIT_SECONDS;
-        let named = |c: &TrainConfig| c.effect.as_ref().map(|e| e.name);
+        let carried = given_cfg.effect.as_ref().map(|e| e.name);
         let given_blob = snapshot::Given {
             model: &given,
             path: weights,
-            carries_effect: named(&given_cfg).is_some() && named(&given_cfg) == named(&plan.cfg),
+            carries_effect: carried.is_some_and(|c| {
+                parts
+                    .iter()
+                    .any(|p| p.diagnosis.effects.iter().any(|e| e.name == c))
+            }),
         };
         let (choice, noise_kept) = snapshot::keep(
             &run,

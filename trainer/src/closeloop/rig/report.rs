@@ -117,7 +117,7 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
         .collect();
     let outcome = if let super::Kept::Given = k.kept {
         format!(
-            "none forecasts them as well as `{}`, whose second parameter is already the effect named, so it is the blob written, unchanged",
+            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named, so it is the blob written, unchanged",
             r.given.display()
         )
     } else if let super::Kept::Iteration(at) = k.kept
@@ -127,13 +127,20 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
     } else {
         "none forecasts them better than the last, which is kept".to_string()
     };
+    let weighed = if k.weighed.len() == 1 {
+        "The time budget left no room to export and weigh its snapshots".to_string()
+    } else {
+        format!(
+            "Its snapshots were exported and weighed on them ({})",
+            each.join(", ")
+        )
+    };
     let _ = writeln!(
         s,
-        "**The fine-tuning's last model forecasts replicas of the recordings worse than `{}`** ({:.4} against {:.4}; lab-like draws around the first parts' diagnoses). Its snapshots were exported and weighed on them ({}): {outcome}.\n",
+        "**The fine-tuning's last model forecasts replicas of the recordings worse than `{}`** ({:.4} against {:.4}; lab-like draws around the first parts' diagnoses). {weighed}: {outcome}.\n",
         r.given.display(),
         last.replicas,
         k.given,
-        each.join(", "),
     );
 }
 

@@ -3,9 +3,10 @@
 //! given blob does; then the one of its snapshots that forecasts them
 //! best, each exported as the last was (`noise::export`). Where none
 //! forecasts them as well as the given blob and the given blob's second
-//! parameter is already the effect named, the given blob itself is kept:
-//! the loop never writes a blob for that effect that it has measured to
-//! forecast worse than the one it was given.
+//! parameter is an effect the diagnoses name (the one added, or one drawn
+//! beside it), the given blob itself is kept: the loop never writes a
+//! blob for these effects that it has measured to forecast worse than
+//! the one it was given.
 //!
 //! The replicas are drawn from the first parts' diagnoses alone, and
 //! their forecasts foretell the held-out ones: over the 27 lab recordings
@@ -59,7 +60,7 @@ pub struct Weighed {
 pub enum Kept {
     /// The fine-tuning's model after this many iterations.
     Iteration(usize),
-    /// The given blob, unchanged (its second parameter is the effect
+    /// The given blob, unchanged (its second parameter is an effect
     /// named, and no model of the fine-tuning forecast the replicas as
     /// well).
     Given,
@@ -90,7 +91,7 @@ impl Choice {
 /// The model to keep: the `last` where it forecasts the replicas no worse
 /// than the `given` blob's error, else the best of it and the
 /// `snapshots`; the given blob where that best is still worse and the
-/// given `carries_effect` (its second parameter is the one named).
+/// given `carries_effect` (its second parameter is an effect named).
 pub fn choose(last: Weighed, snapshots: &[Weighed], given: f64, carries_effect: bool) -> Kept {
     if last.replicas <= given {
         return Kept::Iteration(last.iteration);
@@ -111,7 +112,7 @@ pub struct Given<'a> {
     pub model: &'a Model<'a>,
     /// Where it lies (its sidecar beside it).
     pub path: &'a Path,
-    /// Whether its second parameter is the effect named.
+    /// Whether its second parameter is an effect the diagnoses name.
     pub carries_effect: bool,
 }
 
@@ -120,7 +121,7 @@ pub struct Given<'a> {
 /// where the last forecasts them worse than the `given` blob; each
 /// snapshot, in order while `room()` says another fits in the time, is
 /// exported with its noise chosen on `tuning` and the `replicas`. Where
-/// none forecasts them as well and the given carries the effect named,
+/// none forecasts them as well and the given carries an effect named,
 /// the given blob is written there. Returns the choice and the kept
 /// export's noise pairs (`None`: the last's, already at `blob`; none
 /// for the given blob, whose noise this loop did not choose).
@@ -247,7 +248,7 @@ mod tests {
 
     /// The last where it is no worse than the given blob; else the best
     /// snapshot; the given blob only where all are worse and it carries
-    /// the effect named (else the best of the worse ones, the blob the
+    /// an effect named (else the best of the worse ones, the blob the
     /// effect asks for). Figures from seed 83's viscous + drag (given
     /// 0.204; last 1.354; snapshots 0.438, 0.9, 1.1).
     #[test]
