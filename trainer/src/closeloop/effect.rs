@@ -86,9 +86,10 @@ impl Chosen {
 /// On seed 89's string with viscous damping and Coulomb friction (Q 12),
 /// fine-tuned from `weights/rig.kkf` (viscous), a blob with viscous
 /// damping as its parameter forecast the held-out third at 0.61 of the
-/// given blob's error, one with Coulomb friction at 0.36, though viscous
-/// damping alone forecasts the first part better than Coulomb friction
-/// alone (physics at the diagnosis, 0.0011 against 0.0069).
+/// given blob's error (6000 iterations), one with Coulomb friction at
+/// 0.38 (5000), though viscous damping alone forecasts the first part
+/// better than Coulomb friction alone (physics at the diagnosis, 0.0011
+/// against 0.0069).
 fn choose_effect(
     diags: &[&SwingDiagnosis],
     carried: Option<EffectKind>,
