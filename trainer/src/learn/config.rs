@@ -136,6 +136,12 @@ pub struct TrainConfig {
     /// fine-tuning has loaded): a caller may choose among them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub snapshots: Vec<usize>,
+    /// Train on the lab draws' noise-free twin
+    /// (`data::drawn::LabDraw::noise_free`): the same pendulums without
+    /// the tracker's noise, quantisation and artefacts. The export's noise
+    /// choice and calibration still draw `lab` as it is.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub noise_free_training: bool,
 }
 
 impl Default for TrainConfig {
@@ -174,6 +180,7 @@ impl Default for TrainConfig {
             warm_start: None,
             unevenness_floor: None,
             snapshots: Vec::new(),
+            noise_free_training: false,
         }
     }
 }

@@ -117,6 +117,16 @@ pub fn device() -> Device {
     Device::flex().autodiff()
 }
 
+/// The transitions a run trains on: [`dynamics_data`] where the config
+/// asks for a noise-free training, [`training_data`] otherwise.
+pub fn batches_data(cfg: &TrainConfig) -> Result<Dataset> {
+    if cfg.noise_free_training {
+        dynamics_data(cfg)
+    } else {
+        training_data(cfg)
+    }
+}
+
 /// The training data a config describes (deterministic from its seed).
 pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
     if let Some(draw) = &cfg.lab {
@@ -240,5 +250,42 @@ mod tests {
         let (read_cfg, _) = read(&dir).unwrap();
         assert_eq!(read_cfg.ridge, 1e-4);
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A noise-free training trains on the draws' noise-free twin (the
+    /// same pendulums: equal within the noise and quantisation drawn);
+    /// else on the draws as they are, noise and all.
+    #[test]
+    fn a_noise_free_training_trains_on_the_draws_noise_free_twin() {
+        let noisy = TrainConfig {
+            rig: trainer_core::physics::Rig::Simple,
+            g: trainer_core::data::lab::LAB_G,
+            lengths: vec![0.3, 0.6],
+            theta0: [0.1, 0.5],
+            rollout_steps: 64,
+            lab: Some(data::drawn::LabDraw {
+                rollouts: 6,
+                noise: [0.01, 0.01],
+                ..Default::default()
+            }),
+            ..TrainConfig::for_model(ModelKind::Bilinear)
+        };
+        let clean = TrainConfig {
+            noise_free_training: true,
+            ..noisy.clone()
+        };
+        let gap = |a: &Dataset, b: &Dataset| {
+            a.rollouts
+                .iter()
+                .zip(&b.rollouts)
+                .flat_map(|(x, y)| x.xs.iter().zip(&y.xs))
+                .map(|(u, v)| (u[0] - v[0]).abs())
+                .fold(0.0f64, f64::max)
+        };
+        let twin = dynamics_data(&noisy).unwrap();
+        assert_eq!(gap(&batches_data(&clean).unwrap(), &twin), 0.0);
+        let trained = batches_data(&noisy).unwrap();
+        let g = gap(&trained, &twin);
+        assert!(g > 0.01 && g < 0.1, "noisy draws {g} rad from their twin");
     }
 }

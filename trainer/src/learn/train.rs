@@ -18,7 +18,7 @@ use trainer_core::io::write_atomic;
 use super::bilinear::Bilinear;
 use super::config::{ModelKind, TrainConfig};
 use super::model::{Klm, Losses, Regressor, Trainable};
-use super::run::{Norm, RunPaths, RunState, device, load_model, training_data};
+use super::run::{Norm, RunPaths, RunState, device, batches_data, load_model};
 use super::warm;
 
 /// Largest ridge a batch's least squares rises to. Solved in f32 without
@@ -212,7 +212,7 @@ fn train_model<M: Trainable>(
     } else {
         None
     };
-    let ds = training_data(saved.as_ref().unwrap_or(&cfg))?;
+    let ds = batches_data(saved.as_ref().unwrap_or(&cfg))?;
     let (mut cfg, mut model, mut optim, mut state) = match saved {
         Some(saved) => resume_from::<M>(&paths, saved, &device)?,
         None => start_fresh::<M>(dir, &paths, cfg, &ds, &device)?,
@@ -468,6 +468,7 @@ fn checkpoint<M: Trainable>(
 
 #[cfg(test)]
 mod tests {
+    use super::super::run::training_data;
     use super::*;
 
     /// The lengths of the windows in one batch (read back from `p`).

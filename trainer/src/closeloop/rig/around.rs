@@ -122,6 +122,11 @@ pub fn plan(
         opts.anew_iterations
     };
     cfg.warm_start = fits.then(|| weights.to_path_buf());
+    // A fine-tuning learns the dynamics from the draws without their
+    // noise: on seed 89's viscous rod, trained on the noisy draws its last
+    // model forecast the replicas at 0.0070, worse than the given blob's
+    // 0.0053; on their noise-free twin, at 0.0019.
+    cfg.noise_free_training = fits;
     cfg.unevenness_floor = Some(f64::from(given_unevenness));
     let start = if fits {
         format!(
