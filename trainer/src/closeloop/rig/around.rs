@@ -348,6 +348,8 @@ mod tests {
     use super::*;
     use crate::closeloop::parts::UsablePart;
     use trainer_core::data::Rollout;
+    use trainer_core::data::drawn::LabDraw;
+    use trainer_core::data::import::ImportOptions;
     use trainer_core::diagnose;
     use trainer_core::physics::{Effect, Pendulum};
 
@@ -401,6 +403,50 @@ mod tests {
             e.viscous
         );
         assert_eq!(e.coulomb, given.coulomb);
+    }
+
+    /// A plan that fine-tunes trains on its draws' noise-free twin, and
+    /// its filter's noise is still chosen on draws with the given blob's
+    /// noise; a plan trained anew (the recording outside the given
+    /// blob's lengths) trains on the draws as they are.
+    #[test]
+    fn a_fine_tuning_trains_without_the_noise_its_filter_is_tuned_with() {
+        let part = viscous_and_drag();
+        let rec = Recording {
+            t: part.series.t.clone(),
+            theta: part.series.xs.iter().map(|x| x[0]).collect(),
+            theta_dot: None,
+        };
+        let given = TrainConfig {
+            rig: Rig::Simple,
+            g: 9.81,
+            lengths: vec![0.1, 1.5],
+            theta0: [0.03, 1.5],
+            lab: Some(LabDraw::default()),
+            ..TrainConfig::for_model(ModelKind::Bilinear)
+        };
+        let opts = CloseLoopOptions {
+            import: ImportOptions::default(),
+            rig: Rig::Simple,
+            g: 9.81,
+            g_declared: true,
+            iterations: 100,
+            iterations_least: 100,
+            anew_iterations: 100,
+            seed: 42,
+            quiet: true,
+        };
+        let recs = [("rod".to_string(), rec)];
+        let weights = Path::new("given.kkf");
+        let fine = plan(std::slice::from_ref(&part), &recs, &given, 0.1, weights, &opts).unwrap();
+        assert!(fine.cfg.warm_start.is_some() && fine.cfg.noise_free_training);
+        assert_eq!(tuning_set(&fine.cfg).noise, LabDraw::default().noise);
+        let far = TrainConfig {
+            lengths: vec![2.0, 5.0],
+            ..given
+        };
+        let anew = plan(std::slice::from_ref(&part), &recs, &far, 0.1, weights, &opts).unwrap();
+        assert!(anew.cfg.warm_start.is_none() && !anew.cfg.noise_free_training);
     }
 
     /// The replicas of a 60 s rod with viscous damping and drag span
