@@ -18,7 +18,7 @@ use trainer_core::io::write_atomic;
 use super::bilinear::Bilinear;
 use super::config::{ModelKind, TrainConfig};
 use super::model::{Klm, Losses, Regressor, Trainable};
-use super::run::{Norm, RunPaths, RunState, device, batches_data, load_model};
+use super::run::{Norm, RunPaths, RunState, batches_data, device, load_model};
 use super::warm;
 
 /// Largest ridge a batch's least squares rises to. Solved in f32 without
