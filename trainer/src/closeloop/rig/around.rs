@@ -438,30 +438,25 @@ mod tests {
         };
         let recs = [("rod".to_string(), rec)];
         let weights = Path::new("given.kkf");
-        let fine = plan(
-            std::slice::from_ref(&part),
-            &recs,
-            &given,
-            0.1,
-            weights,
-            &opts,
-        )
-        .unwrap();
+        let plan_for = |given: &TrainConfig| {
+            plan(
+                std::slice::from_ref(&part),
+                &recs,
+                given,
+                0.1,
+                weights,
+                &opts,
+            )
+            .unwrap()
+        };
+        let fine = plan_for(&given);
         assert!(fine.cfg.warm_start.is_some() && fine.cfg.noise_free_training);
         assert_eq!(tuning_set(&fine.cfg).noise, LabDraw::default().noise);
         let far = TrainConfig {
             lengths: vec![2.0, 5.0],
             ..given
         };
-        let anew = plan(
-            std::slice::from_ref(&part),
-            &recs,
-            &far,
-            0.1,
-            weights,
-            &opts,
-        )
-        .unwrap();
+        let anew = plan_for(&far);
         assert!(anew.cfg.warm_start.is_none() && !anew.cfg.noise_free_training);
     }
 
