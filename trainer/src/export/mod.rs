@@ -155,7 +155,9 @@ pub fn export_selecting_noise(
 /// [`export_selecting_noise`] with a second value: `score` gives each
 /// draft `(first, then)`, and among the candidates whose first is within
 /// `tolerance` of the lowest, the lowest `then` is exported (the lowest
-/// first where none gives one).
+/// first where none gives one). A draft whose verdict cannot be
+/// calibrated (its filter's state turns non-finite on a held-out draw)
+/// is refused, saying why, and the next in that order is exported.
 pub fn export_choosing_noise(
     dir: &Path,
     out: &Path,
@@ -190,12 +192,15 @@ pub fn export_choosing_noise(
         )
         .collect();
     let mut scored = Vec::with_capacity(candidates.len());
-    // Every scored draft, kept to calibrate and write the chosen one.
-    let mut drafts: Vec<(f64, f64, ExportOptions, Vec<u8>, Draft)> = Vec::new();
+    // Every scored draft, kept to calibrate and write the chosen one,
+    // with its candidate's place in `scored`.
+    let mut drafts: Vec<(usize, ExportOptions, Vec<u8>, Draft)> = Vec::new();
+    let mut values: Vec<(f64, f64)> = Vec::new();
     for (q, r, opts, scored_draft) in outcomes {
         let (value, refused) = match scored_draft {
             Ok(((v, then), bytes, d)) if v.is_finite() && then.is_none_or(f64::is_finite) => {
-                drafts.push((v, then.unwrap_or(v), opts, bytes, d));
+                drafts.push((scored.len(), opts, bytes, d));
+                values.push((v, then.unwrap_or(v)));
                 (Some((v, then)), None)
             }
             Ok(((v, then), ..)) => (None, Some(format!("score {v}, then {then:?}"))),
@@ -209,17 +214,75 @@ pub fn export_choosing_noise(
             refused,
         });
     }
-    let lowest = drafts.iter().map(|d| d.0).fold(f64::INFINITY, f64::min);
-    // The first of the lowest `then` among those near the lowest score.
-    let chosen = drafts
-        .into_iter()
-        .filter(|d| d.0 <= lowest + tolerance)
-        .reduce(|best, d| if d.1 < best.1 { d } else { best });
-    let info = match chosen {
-        Some((_, _, opts, bytes, d)) => prepared.finish_draft(&opts, &bytes, d, out)?,
-        None => prepared.finish(&ExportOptions::default(), out)?,
-    };
+    if drafts.is_empty() {
+        let info = prepared.finish(&ExportOptions::default(), out)?;
+        return Ok((info, scored));
+    }
+    // The drafts in the order of choice; one whose verdict cannot be
+    // calibrated (its filter fails on a held-out draw) is refused, and
+    // the next is tried.
+    let (info, failed) = first_that_finishes(&preference(&values, tolerance), |i| {
+        let (_, opts, bytes, d) = drafts.get(i).context("no such draft")?;
+        prepared.finish_draft(opts, bytes, d, out)
+    })?;
+    for (i, why) in failed {
+        if let Some(c) = drafts.get(i).and_then(|d| scored.get_mut(d.0)) {
+            c.refused = Some(format!("calibration: {why}"));
+        }
+    }
     Ok((info, scored))
+}
+
+/// The order in which the scored drafts `values` (each `(first, then)`)
+/// are tried: those whose first is within `tolerance` of the lowest, by
+/// their `then` (the earlier of equals first), then the rest by their
+/// first and `then`.
+fn preference(values: &[(f64, f64)], tolerance: f64) -> Vec<usize> {
+    let lowest = values.iter().map(|v| v.0).fold(f64::INFINITY, f64::min);
+    // (beyond the tolerance, place, (first, then)), sorted stably.
+    let mut order: Vec<(bool, usize, (f64, f64))> = values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| (v.0 > lowest + tolerance, i, v))
+        .collect();
+    order.sort_by(|(far, _, a), (far_b, _, b)| {
+        far.cmp(far_b).then_with(|| {
+            if *far {
+                a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1))
+            } else {
+                a.1.total_cmp(&b.1)
+            }
+        })
+    });
+    order.into_iter().map(|(_, i, _)| i).collect()
+}
+
+/// `finish` of the first of `order` that succeeds, and why each one
+/// before it failed; the last failure where none succeeds.
+fn first_that_finishes<T>(
+    order: &[usize],
+    mut finish: impl FnMut(usize) -> Result<T>,
+) -> Result<(T, Vec<(usize, String)>)> {
+    let mut failed = Vec::new();
+    let mut last = None;
+    for &i in order {
+        match finish(i) {
+            Ok(t) => return Ok((t, failed)),
+            Err(e) => {
+                failed.push((i, format!("{e:#}")));
+                last = Some(e);
+            }
+        }
+    }
+    Err(last.map_or_else(
+        || anyhow::anyhow!("no noise pair to export"),
+        |e| {
+            e.context(format!(
+                "none of the {} noise pairs could be calibrated",
+                order.len()
+            ))
+        },
+    ))
 }
 
 /// The filter's process-noise scales (`q_latent`) a run on lab-like
@@ -423,15 +486,15 @@ impl Prepared {
     /// `out` with its [`ExportInfo`] beside it.
     fn finish(mut self, opts: &ExportOptions, out: &Path) -> Result<ExportInfo> {
         let (draft, d) = self.draft(opts)?;
-        self.finish_draft(opts, &draft, d, out)
+        self.finish_draft(opts, &draft, &d, out)
     }
 
     /// [`Prepared::finish`] of a draft already made with `opts`.
     fn finish_draft(
-        self,
+        &self,
         opts: &ExportOptions,
         draft: &[u8],
-        d: Draft,
+        d: &Draft,
         out: &Path,
     ) -> Result<ExportInfo> {
         let (bytes, trust) = calibrate_with_progress(draft, &calibration_for(&self.cfg))?;
@@ -536,4 +599,47 @@ pub fn calibrate_with_progress(
     })?;
     bar.finish_and_clear();
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The drafts within the tolerance of the lowest first come first, by
+    /// their `then` (the earlier of equals first), the rest after them by
+    /// their first: the first is the one chosen before a calibration could
+    /// refuse it.
+    #[test]
+    fn the_drafts_are_tried_nearest_the_best_first() {
+        let values = [
+            (0.10, 0.5),
+            (0.30, 0.1),
+            (0.12, 0.2),
+            (0.11, 0.2),
+            (0.20, 0.05),
+        ];
+        assert_eq!(preference(&values, 0.05), vec![2, 3, 0, 4, 1]);
+        assert_eq!(preference(&values, 0.0), vec![0, 3, 2, 4, 1]);
+        assert!(preference(&[], 0.1).is_empty());
+    }
+
+    /// A draft whose calibration fails is passed over for the next, with
+    /// why; where all fail, the error says so.
+    #[test]
+    fn a_draft_that_cannot_be_calibrated_gives_way_to_the_next() {
+        let finish = |i: usize| {
+            if i == 2 {
+                anyhow::bail!("filter: update produced a non-finite state")
+            }
+            Ok(i * 10)
+        };
+        let (t, failed) = first_that_finishes(&[2, 3, 0], finish).unwrap();
+        assert_eq!(t, 30);
+        assert_eq!(failed.len(), 1);
+        assert_eq!(failed[0].0, 2);
+        assert!(failed[0].1.contains("non-finite"));
+        let none = first_that_finishes(&[2], finish).unwrap_err();
+        assert!(format!("{none:#}").contains("none of the 1 noise pairs could be calibrated"));
+        assert!(format!("{none:#}").contains("non-finite"));
+    }
 }
