@@ -192,15 +192,13 @@ pub fn export_choosing_noise(
         )
         .collect();
     let mut scored = Vec::with_capacity(candidates.len());
-    // Every scored draft, kept to calibrate and write the chosen one,
-    // with its candidate's place in `scored`.
-    let mut drafts: Vec<(usize, ExportOptions, Vec<u8>, Draft)> = Vec::new();
-    let mut values: Vec<(f64, f64)> = Vec::new();
+    // Every scored draft, kept to calibrate and write the chosen one:
+    // its candidate's place in `scored`, its `(first, then)`, the draft.
+    let mut drafts: Vec<(usize, (f64, f64), ExportOptions, Vec<u8>, Draft)> = Vec::new();
     for (q, r, opts, scored_draft) in outcomes {
         let (value, refused) = match scored_draft {
             Ok(((v, then), bytes, d)) if v.is_finite() && then.is_none_or(f64::is_finite) => {
-                drafts.push((scored.len(), opts, bytes, d));
-                values.push((v, then.unwrap_or(v)));
+                drafts.push((scored.len(), (v, then.unwrap_or(v)), opts, bytes, d));
                 (Some((v, then)), None)
             }
             Ok(((v, then), ..)) => (None, Some(format!("score {v}, then {then:?}"))),
@@ -221,8 +219,9 @@ pub fn export_choosing_noise(
     // The drafts in the order of choice; one whose verdict cannot be
     // calibrated (its filter fails on a held-out draw) is refused, and
     // the next is tried.
+    let values: Vec<(f64, f64)> = drafts.iter().map(|d| d.1).collect();
     let (info, failed) = first_that_finishes(&preference(&values, tolerance), |i| {
-        let (_, opts, bytes, d) = drafts.get(i).context("no such draft")?;
+        let (_, _, opts, bytes, d) = drafts.get(i).context("no such draft")?;
         prepared.finish_draft(opts, bytes, d, out)
     })?;
     for (i, why) in failed {
