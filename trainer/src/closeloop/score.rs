@@ -77,19 +77,46 @@ pub(super) fn recording(
 /// `rig`'s length at gravity `g`, steps of `dt`): without effects, and
 /// with the diagnosed dynamic terms.
 pub(super) fn physics(part: &Part, rig: Rig, g: f64, dt: f64) -> Result<[forecast::Score; 2]> {
-    let (r, cut, d) = (&part.series, part.cut, &part.diagnosis);
+    let (r, cut) = (&part.series, part.cut);
     let ctx = |e: anyhow::Error| e.context(format!("{}: the held-out part", part.source));
+    let [without, with] = pendulums(part, rig, g);
+    let before = forecast::physics(&without, &r.xs, cut, dt).map_err(ctx)?;
+    let after = forecast::physics(&with, &r.xs, cut, dt).map_err(ctx)?;
+    Ok([before, after])
+}
+
+/// The held-out scores of the physics with `part`'s diagnosed terms read
+/// from each window ([`forecast::physics_fitted`]): its state, and its
+/// state and `w`; arguments as for [`physics`].
+pub(super) fn physics_fitted(
+    part: &Part,
+    rig: Rig,
+    g: f64,
+    dt: f64,
+) -> Result<[forecast::Score; 2]> {
+    let [_, with] = pendulums(part, rig, g);
+    let ctx = |e: anyhow::Error| e.context(format!("{}: the held-out part", part.source));
+    let (xs, cut) = (&part.series.xs, part.cut);
+    Ok([
+        forecast::physics_fitted(&with, xs, cut, dt, false).map_err(ctx)?,
+        forecast::physics_fitted(&with, xs, cut, dt, true).map_err(ctx)?,
+    ])
+}
+
+/// The pendulum at `part`'s swings' `w`: without effects, and with the
+/// diagnosed dynamic terms.
+fn pendulums(part: &Part, rig: Rig, g: f64) -> [Pendulum; 2] {
+    let d = &part.diagnosis;
     let mut p = Pendulum::of(rig, rig.length(g, d.w * d.w));
     p.g = g;
-    let before = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
+    let without = p.clone();
     p.effects = d
         .effects
         .iter()
         .filter(|e| e.name.is_dynamic())
         .map(|e| Effect::new(e.name, e.coefficient))
         .collect();
-    let after = forecast::physics(&p, &r.xs, cut, dt).map_err(ctx)?;
-    Ok([before, after])
+    [without, p]
 }
 
 /// The measurements the filter sees before the first held-out forecast

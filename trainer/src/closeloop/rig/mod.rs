@@ -147,6 +147,10 @@ pub struct RigRecording {
     /// diagnosed dynamic terms (`None` where the held-out part is too
     /// short for forecasts).
     pub physics: Option<[Score; 2]>,
+    /// The physics with the diagnosed terms read from each window: its
+    /// state fitted to the window's measurements, and its state and `w`,
+    /// as a fresh filter must read them (`None` as for `physics`).
+    pub physics_fitted: Option<[Score; 2]>,
 }
 
 /// What the loop made and found.
@@ -313,6 +317,7 @@ pub fn close_loop_rig(
                 before: read::held_out(&given, p, dt)?,
                 after: read::held_out(&after, p, dt)?,
                 physics: score::physics(p, opts.rig, opts.g, dt).ok(),
+                physics_fitted: score::physics_fitted(p, opts.rig, opts.g, dt).ok(),
             })
         })
         .collect::<Result<_>>()?;
