@@ -162,8 +162,8 @@ pub fn physics_fitted(
 }
 
 /// Largest share by which [`physics_fitted`] moves `w0^2` from the
-/// physics' own (the diagnosis reads `w` within a few tenths of a
-/// percent; a 64-measurement window at the noise, within a few percent).
+/// physics' own (the swings' `w`, which the diagnosis reads from the
+/// whole first part).
 pub const W2_SPAN: f64 = 0.08;
 /// Its steps: 0.25% in `w`, a phase of 0.04 rad over a 5 s horizon of a
 /// 1 s period.
