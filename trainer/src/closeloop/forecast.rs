@@ -253,33 +253,36 @@ fn fitted_start(p: &Pendulum, seen: &[[f64; 2]], dt: f64) -> ([f64; 2], f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
+    use trainer_core::data::import::{self, ImportOptions};
+    use trainer_core::data::lab::{Artefacts, Case, LAB_G, LabSpec, Stamps};
     use trainer_core::physics::{Effect, EffectKind, Rig};
 
-    /// A damped string's angle, 0.2 rad released, at `dt` for `n` steps,
-    /// with Gaussian noise of `noise` rad (seeded), its rate by central
-    /// differences of the angle, as an import of an angle-only recording
-    /// differentiates it.
-    fn swing(p: &Pendulum, n: usize, dt: f64, noise: f64) -> Vec<[f64; 2]> {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let mut gauss = || {
-            let (u1, u2): (f64, f64) = (1.0 - rng.random::<f64>(), rng.random());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    /// `truth` released at 0.2 rad, recorded as a lab tool would (25 Hz,
+    /// `noise` rad of tracking noise, 0.1 degree steps) and imported at
+    /// `dt`, its rate differentiated from the angle.
+    fn recorded(truth: &Pendulum, seconds: f64, dt: f64, noise: f64) -> Vec<[f64; 2]> {
+        let spec = LabSpec {
+            case: Case::Viscous,
+            length: truth.length,
+            rig: truth.rig,
+            theta0: 0.2,
+            duration: seconds,
+            rate: 25.0,
+            stamps: Stamps::Even,
+            noise,
+            quantum: 0.1f64.to_radians(),
+            effects: truth.effects.clone(),
+            offset: 0.0,
+            forcing: None,
+            artefacts: Artefacts::NONE,
         };
-        let angles: Vec<f64> = p
-            .rollout([0.2, 0.0], n, dt)
-            .into_iter()
-            .map(|[a, _]| a + noise * gauss())
-            .collect();
-        (0..n)
-            .map(|i| {
-                let (lo, hi) = (i.saturating_sub(1), (i + 1).min(n - 1));
-                [
-                    angles[i],
-                    (angles[hi] - angles[lo]) / ((hi - lo) as f64 * dt),
-                ]
-            })
-            .collect()
+        let rec = spec.record(&mut rand_chacha::ChaCha8Rng::seed_from_u64(11));
+        let opts = ImportOptions {
+            dt,
+            ..ImportOptions::default()
+        };
+        import::to_rollout(&rec, 0, &opts).unwrap().xs
     }
 
     /// On a clean swing the physics read from each window forecasts all
@@ -291,9 +294,9 @@ mod tests {
     fn the_fitted_physics_reads_the_window_as_a_filter_would() {
         let dt = 0.04;
         let mut truth = Pendulum::of(Rig::Simple, 0.8);
-        truth.g = 9.81;
+        truth.g = LAB_G;
         truth.effects = vec![Effect::new(EffectKind::Viscous, 0.08)];
-        let clean = swing(&truth, 900, dt, 0.0);
+        let clean = truth.rollout([0.2, 0.0], 900, dt);
         let from = 600;
         for read_w in [false, true] {
             let exact = physics_fitted(&truth, &clean, from, dt, read_w).unwrap();
@@ -309,7 +312,7 @@ mod tests {
         assert!(last_off.median > 100.0 * w_read.median, "{last_off:?}");
         // The noise: the state read from the window averages it; w read
         // from it too leaves a forecast between the two.
-        let noisy = swing(&truth, 900, dt, 0.004);
+        let noisy = recorded(&truth, 36.0, dt, 0.004);
         let [w_known, w_read] =
             [false, true].map(|r| physics_fitted(&truth, &noisy, from, dt, r).unwrap());
         let last_noisy = physics(&truth, &noisy, from, dt).unwrap();
