@@ -42,6 +42,7 @@ use crate::learn::config::TrainConfig;
 mod around;
 mod noise;
 mod pace;
+mod prior;
 mod read;
 mod report;
 mod snapshot;
@@ -288,6 +289,7 @@ pub fn close_loop_rig(
                     .iter()
                     .any(|p| p.diagnosis.effects.iter().any(|e| e.name == c))
             }),
+            plan: &plan.cfg,
         };
         let (choice, noise_kept) = snapshot::keep(
             &run,

@@ -22,18 +22,19 @@ pub fn markdown(r: &RigLoopReport) -> String {
     let mut s = String::new();
     let c = &r.config;
     let _ = writeln!(s, "# close-loop: a rig blob\n");
-    let written = if r
-        .kept
-        .as_ref()
-        .is_some_and(|k| k.kept == super::Kept::Given)
-    {
-        format!(
+    let [lo, hi] = c.length_range();
+    let written = match r.kept.as_ref().map(|k| k.kept) {
+        Some(super::Kept::Given) => format!(
             "a copy of `{}`, unchanged: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
             r.given.display(),
             r.start
-        )
-    } else {
-        r.start.clone()
+        ),
+        Some(super::Kept::GivenOnPlan) => format!(
+            "a copy of `{}` whose filter starts at these lengths ({lo:.3}..{hi:.3} m: its length prior their middle, half their range its std), its verdict calibrated on held-out draws of them; its model, noise and second parameter are the given blob's: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
+            r.given.display(),
+            r.start
+        ),
+        _ => r.start.clone(),
     };
     let _ = writeln!(
         s,
@@ -118,9 +119,20 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
         .iter()
         .map(|w| format!("{} iterations {:.4}", w.iteration, w.replicas))
         .collect();
+    let started = k.on_plan.map_or(String::new(), |e| {
+        format!(
+            "; started at the plan's lengths, it forecasts them at {e:.4}, {} than as it came",
+            if e < k.given { "better" } else { "no better" }
+        )
+    });
     let outcome = if let super::Kept::Given = k.kept {
         format!(
-            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named, so it is the blob written, unchanged",
+            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so it is the blob written, unchanged",
+            r.given.display()
+        )
+    } else if let super::Kept::GivenOnPlan = k.kept {
+        format!(
+            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so the blob written is the given blob started at the plan's lengths",
             r.given.display()
         )
     } else if let super::Kept::Iteration(at) = k.kept

@@ -6,7 +6,9 @@
 //! parameter is an effect the diagnoses name (the one added, or one drawn
 //! beside it), the given blob itself is kept: the loop never writes a
 //! blob for these effects that it has measured to forecast worse than
-//! the one it was given.
+//! the one it was given. It is kept started at the plan's lengths
+//! (`prior`) where that copy forecasts the replicas better than the
+//! given blob as it came.
 //!
 //! The replicas are drawn from the first parts' diagnoses alone, and
 //! their forecasts foretell the held-out ones: over the 27 lab recordings
@@ -24,7 +26,10 @@ use estimator::Model;
 use serde::Serialize;
 use trainer_core::labcheck::LabCheckConfig;
 
-use super::noise;
+use trainer_core::io::write_atomic;
+
+use super::{noise, prior};
+use crate::learn::config::TrainConfig;
 use crate::learn::run::{self, RunPaths};
 
 /// Shares of the fine-tuning's iterations after which a snapshot is kept
@@ -64,6 +69,10 @@ pub enum Kept {
     /// named, and no model of the fine-tuning forecast the replicas as
     /// well).
     Given,
+    /// The given blob with its filter's length prior the plan's
+    /// (`prior::on_plan_lengths`), where [`Kept::Given`] would be and it
+    /// forecasts the replicas better than the given blob unchanged.
+    GivenOnPlan,
 }
 
 /// What was weighed and kept.
@@ -77,6 +86,9 @@ pub struct Choice {
     pub weighed: Vec<Weighed>,
     /// The model kept.
     pub kept: Kept,
+    /// The given blob started at the plan's lengths: its forecast error
+    /// on the replicas, where the given blob was to be kept.
+    pub on_plan: Option<f64>,
 }
 
 impl Choice {
@@ -106,6 +118,17 @@ pub fn choose(last: Weighed, snapshots: &[Weighed], given: f64, carries_effect: 
     }
 }
 
+/// Where `choose` keeps the given blob: its copy on the plan's lengths
+/// where that forecasts the replicas better (`on_plan`, its error) than
+/// the given blob as it came (`given`).
+pub fn choose_given(given: f64, on_plan: Option<f64>) -> Kept {
+    if on_plan.is_some_and(|e| e < given) {
+        Kept::GivenOnPlan
+    } else {
+        Kept::Given
+    }
+}
+
 /// The blob the loop was given.
 pub struct Given<'a> {
     /// Its model.
@@ -114,6 +137,8 @@ pub struct Given<'a> {
     pub path: &'a Path,
     /// Whether its second parameter is an effect the diagnoses name.
     pub carries_effect: bool,
+    /// The plan (its lengths and held-out draws: `prior::calibrated`).
+    pub plan: &'a TrainConfig,
 }
 
 /// Keeps at `blob` the model of the run `dir` (whose last, of
@@ -156,12 +181,23 @@ pub fn keep(
             exported.push((at, out, noise));
         }
     }
-    let kept = choose(
+    let mut kept = choose(
         last,
         weighed.get(1..).unwrap_or_default(),
         given_error,
         given.carries_effect,
     );
+    let mut on_plan = None;
+    if kept == Kept::Given {
+        let copy = dir.join("given-on-plan").join("rig.kkf");
+        if let Some(error) = write_on_plan(given, &copy, replicas)? {
+            on_plan = Some(error);
+            kept = choose_given(given_error, on_plan);
+            if kept == Kept::GivenOnPlan {
+                write_as(&copy, blob)?;
+            }
+        }
+    }
     let noise = match kept {
         Kept::Iteration(at) if at == iterations => None,
         Kept::Iteration(at) => {
@@ -176,15 +212,44 @@ pub fn keep(
             write_as(given.path, blob)?;
             Some(Vec::new())
         }
+        Kept::GivenOnPlan => Some(Vec::new()),
     };
     Ok((
         Choice {
             given: given_error,
             weighed,
             kept,
+            on_plan,
         },
         noise,
     ))
+}
+
+/// Writes the given blob on the plan's lengths, calibrated, to `to`
+/// with its sidecar (the given blob's, its `trust` the new calibration
+/// and `prior_lengths` the plan's); returns its forecast error on the
+/// `replicas`, or `None` where the plan is of another rig.
+fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<Option<f64>> {
+    let Some((bytes, trust)) = prior::calibrated(given.model, given.plan)? else {
+        return Ok(None);
+    };
+    if let Some(dir) = to.parent() {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    write_atomic(to, &bytes)?;
+    let mut info = std::fs::read_to_string(given.path.with_extension("json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+        .unwrap_or_else(|| serde_json::json!({}));
+    info["trust"] = serde_json::to_value(&trust)?;
+    info["blob_bytes"] = serde_json::json!(bytes.len());
+    info["prior_lengths"] = serde_json::json!(given.plan.length_range());
+    write_atomic(
+        &to.with_extension("json"),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )?;
+    score(to, replicas).map(Some)
 }
 
 /// Copies the blob at `from` and its sidecar to `to` and its sidecar.
@@ -272,5 +337,18 @@ mod tests {
             choose(w(12_000, 1.354), &[], 0.204, false),
             Kept::Iteration(12_000)
         );
+    }
+
+    /// Where the given blob is kept, its copy on the plan's lengths only
+    /// if that forecasts the replicas better; none made (a plan of
+    /// another rig) keeps the given blob. Figures: seed 83's replicas
+    /// (given 0.204).
+    #[test]
+    fn the_copy_on_the_plans_lengths_is_kept_only_where_it_forecasts_better() {
+        assert_eq!(choose_given(0.204, Some(0.15)), Kept::GivenOnPlan);
+        assert_eq!(choose_given(0.204, Some(0.204)), Kept::Given);
+        assert_eq!(choose_given(0.204, Some(0.3)), Kept::Given);
+        assert_eq!(choose_given(0.204, None), Kept::Given);
+        assert_eq!(choose_given(0.204, Some(f64::NAN)), Kept::Given);
     }
 }
