@@ -119,12 +119,7 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
         .iter()
         .map(|w| format!("{} iterations {:.4}", w.iteration, w.replicas))
         .collect();
-    let started = k.on_plan.map_or(String::new(), |e| {
-        format!(
-            "; started at the plan's lengths, it forecasts them at {e:.4}, {} than as it came",
-            if e < k.given { "better" } else { "no better" }
-        )
-    });
+    let started = started(k);
     let outcome = if let super::Kept::Given = k.kept {
         format!(
             "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so it is the blob written, unchanged",
@@ -157,6 +152,19 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
         last.replicas,
         k.given,
     );
+}
+
+/// What the given blob started at the plan's lengths forecast, or why
+/// it was not weighed (empty where the given blob was not to be kept).
+fn started(k: &super::Choice) -> String {
+    match (k.on_plan, &k.on_plan_refused) {
+        (Some(e), _) => format!(
+            "; started at the plan's lengths, it forecasts them at {e:.4}, {} than as it came",
+            if e < k.given { "better" } else { "no better" }
+        ),
+        (None, Some(why)) => format!("; started at the plan's lengths, it was not weighed: {why}"),
+        (None, None) => String::new(),
+    }
 }
 
 /// One recording's table and goal line.
@@ -378,7 +386,38 @@ fn second(b: &BlobRead) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{Goal, Score, window_read};
+    use super::{Goal, Score, started, window_read};
+    use crate::closeloop::rig::snapshot::{Choice, Kept, Weighed};
+
+    /// Where the given blob was to be kept, the report gives its copy's
+    /// figure on the replicas against the given blob's, or why it was not
+    /// weighed (seed 83's replicas: given 0.2041, the copy 0.1760).
+    #[test]
+    fn the_copy_on_the_plans_lengths_is_reported_or_why_not() {
+        let choice = |on_plan, refused: Option<&str>| Choice {
+            given: 0.2041,
+            weighed: vec![Weighed {
+                iteration: 5000,
+                replicas: 0.2715,
+            }],
+            kept: Kept::Given,
+            on_plan,
+            on_plan_refused: refused.map(str::to_string),
+        };
+        let better = started(&choice(Some(0.1760), None));
+        assert!(
+            better.contains("at 0.1760, better than as it came"),
+            "{better}"
+        );
+        let worse = started(&choice(Some(0.3), None));
+        assert!(worse.contains("no better"), "{worse}");
+        let why = started(&choice(None, Some("calibration: a state no number")));
+        assert!(
+            why.contains("not weighed: calibration: a state no number"),
+            "{why}"
+        );
+        assert!(started(&choice(None, None)).is_empty());
+    }
 
     fn score(median: f64) -> Score {
         Score {

@@ -24,9 +24,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use estimator::Model;
 use serde::Serialize;
-use trainer_core::labcheck::LabCheckConfig;
-
 use trainer_core::io::write_atomic;
+use trainer_core::labcheck::LabCheckConfig;
 
 use super::{noise, prior};
 use crate::learn::config::TrainConfig;
@@ -89,6 +88,10 @@ pub struct Choice {
     /// The given blob started at the plan's lengths: its forecast error
     /// on the replicas, where the given blob was to be kept.
     pub on_plan: Option<f64>,
+    /// Why there is no such copy where the given blob was to be kept (a
+    /// plan of another rig, a verdict that could not be calibrated, or
+    /// no time left in the budget).
+    pub on_plan_refused: Option<String>,
 }
 
 impl Choice {
@@ -147,7 +150,9 @@ pub struct Given<'a> {
 /// snapshot, in order while `room()` says another fits in the time, is
 /// exported with its noise chosen on `tuning` and the `replicas`. Where
 /// none forecasts them as well and the given carries an effect named,
-/// the given blob is written there. Returns the choice and the kept
+/// the given blob is written there, or its copy started at the plan's
+/// lengths where that forecasts them better (made while `room()` says
+/// it fits). Returns the choice and the kept
 /// export's noise pairs (`None`: the last's, already at `blob`; none
 /// for the given blob, whose noise this loop did not choose).
 pub fn keep(
@@ -187,15 +192,17 @@ pub fn keep(
         given_error,
         given.carries_effect,
     );
-    let mut on_plan = None;
+    let (mut on_plan, mut on_plan_refused) = (None, None);
     if kept == Kept::Given {
         let copy = dir.join("given-on-plan").join("rig.kkf");
-        if let Some(error) = write_on_plan(given, &copy, replicas)? {
-            on_plan = Some(error);
-            kept = choose_given(given_error, on_plan);
-            if kept == Kept::GivenOnPlan {
-                write_as(&copy, blob)?;
-            }
+        match room().then(|| write_on_plan(given, &copy, replicas)) {
+            Some(Ok(error)) => on_plan = Some(error),
+            Some(Err(e)) => on_plan_refused = Some(format!("{e:#}")),
+            None => on_plan_refused = Some("the time budget left no room".into()),
+        }
+        kept = choose_given(given_error, on_plan);
+        if kept == Kept::GivenOnPlan {
+            write_as(&copy, blob)?;
         }
     }
     let noise = match kept {
@@ -220,6 +227,7 @@ pub fn keep(
             weighed,
             kept,
             on_plan,
+            on_plan_refused,
         },
         noise,
     ))
@@ -228,11 +236,17 @@ pub fn keep(
 /// Writes the given blob on the plan's lengths, calibrated, to `to`
 /// with its sidecar (the given blob's, its `trust` the new calibration
 /// and `prior_lengths` the plan's); returns its forecast error on the
-/// `replicas`, or `None` where the plan is of another rig.
-fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<Option<f64>> {
-    let Some((bytes, trust)) = prior::calibrated(given.model, given.plan)? else {
-        return Ok(None);
-    };
+/// `replicas`. An error says why there is none (a plan of another rig,
+/// a verdict that could not be calibrated): the given blob is then kept
+/// as it came.
+fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<f64> {
+    let (bytes, trust) = prior::calibrated(given.model, given.plan)?.with_context(|| {
+        format!(
+            "the plan is of a {:?} rig, the given blob of a {:?} one",
+            given.plan.rig,
+            given.model.blob().body.rig
+        )
+    })?;
     if let Some(dir) = to.parent() {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -249,7 +263,7 @@ fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Res
         &to.with_extension("json"),
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
-    score(to, replicas).map(Some)
+    score(to, replicas)
 }
 
 /// Copies the blob at `from` and its sidecar to `to` and its sidecar.
