@@ -58,8 +58,19 @@ mod tests {
     use super::*;
     use estimator::blob::Reading;
 
-    fn rig_kkf() -> Vec<u8> {
-        std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../weights/rig.kkf")).unwrap()
+    /// `rig.kkf`'s bytes, seed 83's plan (0.453 to 0.708 m, the given
+    /// blob's rig) and the copy on it.
+    fn on_seed_83s_plan() -> (Vec<u8>, TrainConfig, Vec<u8>) {
+        let bytes =
+            std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../weights/rig.kkf")).unwrap();
+        let given = Model::from_bytes(&bytes).unwrap();
+        let cfg = TrainConfig {
+            lengths: vec![0.453, 0.708],
+            rig: given.blob().body.rig,
+            ..TrainConfig::default()
+        };
+        let copy = on_plan_lengths(&given, &cfg).unwrap().unwrap();
+        (bytes, cfg, copy)
     }
 
     /// `rig.kkf` reads `1 / L` linearly over 0.1 to 1.5 m: its coordinate
@@ -69,16 +80,10 @@ mod tests {
     /// else in the blob is the given blob's.
     #[test]
     fn the_copy_starts_at_the_plans_lengths_and_keeps_all_else() {
-        let bytes = rig_kkf();
+        let (bytes, cfg, copy_bytes) = on_seed_83s_plan();
         let given = Model::from_bytes(&bytes).unwrap();
-        assert_eq!(given.blob().body.params[0].reading, Reading::ReciprocalUnit);
-        let cfg = TrainConfig {
-            lengths: vec![0.453, 0.708],
-            rig: given.blob().body.rig,
-            ..TrainConfig::default()
-        };
-        let copy_bytes = on_plan_lengths(&given, &cfg).unwrap().unwrap();
         let copy = Model::from_bytes(&copy_bytes).unwrap();
+        assert_eq!(given.blob().body.params[0].reading, Reading::ReciprocalUnit);
         let (g, c) = (given.blob().body, copy.blob().body);
         let inv = 0.5 * (1.0 / 0.453 + 1.0 / 0.708);
         let q = (16.0 / 3.0 - inv) / (14.0 / 3.0);
@@ -132,14 +137,8 @@ mod tests {
         use trainer_core::data::lab::{Artefacts, Case, LabSpec, Stamps};
         use trainer_core::physics::{Effect, EffectKind};
 
-        let bytes = rig_kkf();
+        let (bytes, _, copy_bytes) = on_seed_83s_plan();
         let given = Model::from_bytes(&bytes).unwrap();
-        let cfg = TrainConfig {
-            lengths: vec![0.453, 0.708],
-            rig: given.blob().body.rig,
-            ..TrainConfig::default()
-        };
-        let copy_bytes = on_plan_lengths(&given, &cfg).unwrap().unwrap();
         let copy = Model::from_bytes(&copy_bytes).unwrap();
         let spec = LabSpec {
             case: Case::ViscousDrag,
