@@ -8,7 +8,6 @@ use anyhow::{Context, Result};
 use estimator::blob::FORMAT_VERSION;
 use trainer::export::upgrade::current_format;
 use trainer_core::calibrate::CalibrateConfig;
-use trainer_core::io::write_atomic;
 
 /// Calibrates the trust verdict of a weights blob on held-out rollouts
 /// from its declared operating range, and writes the blob with the
@@ -44,18 +43,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     let (out_bytes, report) = trainer::export::calibrate_with_progress(&bytes, &cfg)?;
     let out = a.out.unwrap_or(a.blob.clone());
-    write_atomic(&out, &out_bytes)?;
-    let sidecar = a.blob.with_extension("json");
-    let mut info = std::fs::read_to_string(&sidecar)
-        .ok()
-        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
-        .unwrap_or_else(|| serde_json::json!({}));
-    info["trust"] = serde_json::to_value(&report)?;
-    info["blob_bytes"] = serde_json::json!(out_bytes.len());
-    write_atomic(
-        &out.with_extension("json"),
-        serde_json::to_string_pretty(&info)?.as_bytes(),
-    )?;
+    trainer::export::write_calibrated(&a.blob, &out, &out_bytes, &report, &[])?;
     super::say(&format!(
         "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1, a measurement refused above {:.1} times the mean innovation, a source flagged below {:.1} samples a period",
         out.display(),

@@ -600,6 +600,33 @@ pub fn calibrate_with_progress(
     Ok(out)
 }
 
+/// Writes the calibrated blob `bytes` to `out` and its sidecar beside
+/// it: the sidecar of the blob at `from` (empty where none can be read),
+/// its `trust` set to the calibration and `blob_bytes` to the blob's
+/// size, and `extra`'s fields set.
+pub fn write_calibrated(
+    from: &Path,
+    out: &Path,
+    bytes: &[u8],
+    trust: &Calibration,
+    extra: &[(&str, serde_json::Value)],
+) -> Result<()> {
+    write_atomic(out, bytes)?;
+    let mut info = std::fs::read_to_string(from.with_extension("json"))
+        .ok()
+        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+        .unwrap_or_else(|| serde_json::json!({}));
+    info["trust"] = serde_json::to_value(trust)?;
+    info["blob_bytes"] = serde_json::json!(bytes.len());
+    for (key, value) in extra {
+        info[*key] = value.clone();
+    }
+    write_atomic(
+        &out.with_extension("json"),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -24,7 +24,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use estimator::Model;
 use serde::Serialize;
-use trainer_core::io::write_atomic;
 use trainer_core::labcheck::LabCheckConfig;
 
 use super::{noise, prior};
@@ -251,17 +250,15 @@ fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Res
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
     }
-    write_atomic(to, &bytes)?;
-    let mut info = std::fs::read_to_string(given.path.with_extension("json"))
-        .ok()
-        .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
-        .unwrap_or_else(|| serde_json::json!({}));
-    info["trust"] = serde_json::to_value(&trust)?;
-    info["blob_bytes"] = serde_json::json!(bytes.len());
-    info["prior_lengths"] = serde_json::json!(given.plan.length_range());
-    write_atomic(
-        &to.with_extension("json"),
-        serde_json::to_string_pretty(&info)?.as_bytes(),
+    crate::export::write_calibrated(
+        given.path,
+        to,
+        &bytes,
+        &trust,
+        &[(
+            "prior_lengths",
+            serde_json::json!(given.plan.length_range()),
+        )],
     )?;
     score(to, replicas)
 }
