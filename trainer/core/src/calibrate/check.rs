@@ -45,7 +45,7 @@ pub(super) fn check(
 ) -> Result<[CheckFigures; 2]> {
     let cfg = setup.cfg;
     let mut check = [CheckFigures::new(WINDOW), CheckFigures::new(cfg.long_steps)];
-    let lengths = setup.base.body.params[0].train_range;
+    let lengths = setup.lengths();
     for r in setup
         .sampling
         .rollouts(lengths, cfg.rollouts, cfg.long_steps, cfg.seed + 2)?

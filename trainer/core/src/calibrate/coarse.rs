@@ -38,11 +38,12 @@ pub struct CoarseFigures {
 
 /// The fewest samples a period `blob` (calibrated, source check off)
 /// reads right (within `accurate` at the end, where trusted) on coarse
-/// lab-like recordings drawn like `lab` from `seed`, at most `fewest`
+/// lab-like recordings of `lengths` drawn like `lab` from `seed`, at most `fewest`
 /// (what the calibration set covers anyway), and what the set showed.
 pub(super) fn fewest_read_right(
     blob: &Blob<'_>,
     lab: &LabHeldOut,
+    lengths: [f32; 2],
     seed: u64,
     accurate: f64,
     fewest: f64,
@@ -51,11 +52,10 @@ pub(super) fn fewest_read_right(
     open.body.trust.min_samples_per_period = 0.0;
     let bytes = blob_bytes(&open)?;
     let model = Model::from_bytes(&bytes)?;
-    let spec = open.body.params[0];
     let cfg = LabCheckConfig {
         seed,
         recordings: RECORDINGS,
-        lengths: spec.train_range.map(f64::from),
+        lengths: lengths.map(f64::from),
         swings: lab.theta0,
         noise: lab.draw.noise,
         offsets: [-OFFSET, OFFSET],

@@ -40,7 +40,7 @@ pub(super) fn map(setup: &Setup<'_, '_>, progress: &mut Progress<'_>) -> Result<
     let burn_in = usize::from(setup.base.body.filter.burn_in);
     let mut bits = vec![0u8; map_bytes(cfg)];
     let per_bin = usize::from(cfg.theta_cells) * usize::from(cfg.rate_cells);
-    let [lo_l, hi_l] = setup.base.body.params[0].train_range;
+    let [lo_l, hi_l] = setup.lengths();
     let widened = [lo_l * (1.0 - cfg.map_margin), hi_l * (1.0 + cfg.map_margin)];
     for r in setup
         .sampling

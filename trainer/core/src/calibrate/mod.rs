@@ -1,7 +1,8 @@
 //! The trust verdict's calibration: the training envelope, the thresholds
 //! of its checks and the scale of the reported standard deviations, set on
 //! held-out rollouts from the blob's declared operating range (lengths
-//! uniform in the first parameter's training range, released from rest at
+//! uniform in the first parameter's training range, or in
+//! [`CalibrateConfig::lengths`] where set, released from rest at
 //! the protocol's [`THETA0`](crate::protocol::THETA0), at the blob's
 //! gravity and interval; or, for a blob trained on lab-like recordings,
 //! drawn as its training set was, [`CalibrateConfig::lab`]; seeds distinct
@@ -142,6 +143,12 @@ pub struct CalibrateConfig {
     /// Held-out rollouts drawn lab-like (as a blob trained on
     /// `data::drawn` sets was trained), instead of the protocol's.
     pub lab: Option<LabHeldOut>,
+    /// Lengths, m, every phase draws its rollouts from, and the range is
+    /// held within (`None`: the first parameter's training range): a blob
+    /// whose filter starts at one unit's length is calibrated on that
+    /// unit's lengths.
+    #[serde(default)]
+    pub lengths: Option<[f64; 2]>,
 }
 
 /// How lab-like held-out rollouts are drawn: the training set's ranges
@@ -200,6 +207,7 @@ impl Default for CalibrateConfig {
             step_nis_alpha: one_percent(),
             step_nis_margin: default_step_nis_margin(),
             lab: None,
+            lengths: None,
         }
     }
 }
@@ -299,7 +307,7 @@ pub fn calibrate(
         Some(lab) => {
             let covered = f64::from(calibrated.body.trust.min_samples_per_period);
             let (fewest, figures) =
-                coarse::fewest_read_right(&calibrated, lab, cfg.seed + 3, cfg.accurate, covered)?;
+                coarse::fewest_read_right(&calibrated, lab, setup.lengths(), cfg.seed + 3, cfg.accurate, covered)?;
             calibrated.body.trust.min_samples_per_period = fewest as f32;
             Some(figures)
         }
@@ -361,18 +369,22 @@ impl<'b, 'c> Setup<'b, 'c> {
         }
     }
 
+    /// The lengths the rollouts are drawn from
+    /// ([`CalibrateConfig::lengths`]).
+    fn lengths(&self) -> [f32; 2] {
+        self.cfg
+            .lengths
+            .map_or(self.base.body.params[0].train_range, |l| l.map(|v| v as f32))
+    }
+
     /// The base blob with a trust section that passes everything but the
-    /// map `bits` ([`permissive`] over the first parameter's training
-    /// range).
+    /// map `bits` ([`permissive`] over the lengths drawn).
     fn with_map<'a>(&self, bits: &'a [u8]) -> Blob<'a>
     where
         'b: 'a,
     {
         let spec = self.base.body.params[0];
-        let q_range = [
-            spec.coordinate(spec.train_range[0]),
-            spec.coordinate(spec.train_range[1]),
-        ];
+        let q_range = self.lengths().map(|l| spec.coordinate(l));
         let mut blob = self.base;
         blob.body.trust = permissive(self.cfg, q_range, bits);
         blob

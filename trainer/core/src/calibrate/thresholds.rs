@@ -12,9 +12,9 @@
 //!   [`CalibrateConfig::envelope_alpha`]).
 //! - The range: the band between the `range_alpha / 2` and
 //!   `1 - range_alpha / 2` quantiles of the coordinate; where a
-//!   [`CalibrateConfig::range_margin`] is set, held within the trained
-//!   lengths widened by it (with [`CalibrateConfig::range_fixed`], it is
-//!   those lengths widened).
+//!   [`CalibrateConfig::range_margin`] is set, held within the lengths
+//!   drawn ([`CalibrateConfig::lengths`]) widened by it (with
+//!   [`CalibrateConfig::range_fixed`], it is those lengths widened).
 //! - The standard deviations: the floor `b` makes `2 b` cover
 //!   [`CalibrateConfig::coverage`] of the coordinate errors after the long
 //!   run (the model's own error, which `P` does not hold); the scale `a`
@@ -76,7 +76,7 @@ pub(super) fn thresholds<'m>(
     let cal =
         setup
             .sampling
-            .rollouts(spec.train_range, cfg.rollouts, cfg.long_steps, cfg.seed + 1)?;
+            .rollouts(setup.lengths(), cfg.rollouts, cfg.long_steps, cfg.seed + 1)?;
     let min_swing = smallest_trusted_swing(&m, &cal, cfg)?;
     // Then every other threshold with it in place, as the device runs:
     // the estimate held over a swing below it, the unevenness remembered
@@ -87,7 +87,7 @@ pub(super) fn thresholds<'m>(
     let mut r = Readings::of(&m, &cal, setup.base.body.params, progress)?;
     let envelope_max_off =
         conformal(&mut r.off, 1.0 - cfg.envelope_alpha).min(f64::from(u16::MAX)) as u16;
-    let [lo, hi] = range(&mut r.qs, cfg, spec)?;
+    let [lo, hi] = range(&mut r.qs, cfg, spec, setup.lengths())?;
     let (std_floor, std_scale) = std_cover(&mut r.err_long, &r.err_window, cfg.coverage);
     // The effect's, where measured (else as the filter says).
     let (effect_floor, effect_scale) = if r.effect_long.is_empty() {
@@ -99,7 +99,7 @@ pub(super) fn thresholds<'m>(
     let (nis_law, max_nis) = consistency(&r.traces, cfg)?;
     let rate_quantile = conformal(&mut r.rate, 1.0 - cfg.rate_alpha) as f32;
     let step_nis_quantile = conformal(&mut r.step_ratio, 1.0 - cfg.step_nis_alpha) as f32;
-    let fewest = setup.sampling.fewest_samples_per_period(spec.train_range);
+    let fewest = setup.sampling.fewest_samples_per_period(setup.lengths());
     Ok(Thresholds {
         trust: TrustSpec {
             envelope: mapped.body.trust.envelope,
@@ -204,7 +204,12 @@ impl Readings {
 
 /// The coordinate range that passes, from the coordinates `qs` of the
 /// calibration set (see the module docs).
-fn range(qs: &mut [f64], cfg: &CalibrateConfig, spec: ParamSpec<'_>) -> Result<[f64; 2]> {
+fn range(
+    qs: &mut [f64],
+    cfg: &CalibrateConfig,
+    spec: ParamSpec<'_>,
+    [lo_l, hi_l]: [f32; 2],
+) -> Result<[f64; 2]> {
     let lo = kth(
         &mut qs.to_vec(),
         ((qs.len() as f64 + 1.0) * cfg.range_alpha / 2.0).floor() as usize,
@@ -216,7 +221,6 @@ fn range(qs: &mut [f64], cfg: &CalibrateConfig, spec: ParamSpec<'_>) -> Result<[
     );
     let (lo, hi) = match cfg.range_margin {
         Some(m) => {
-            let [lo_l, hi_l] = spec.train_range;
             let ends = [
                 f64::from(spec.coordinate((f64::from(lo_l) / (1.0 + m)) as f32)),
                 f64::from(spec.coordinate((f64::from(hi_l) * (1.0 + m)) as f32)),

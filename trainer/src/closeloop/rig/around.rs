@@ -276,12 +276,8 @@ pub const REPLICA_SECONDS_MAX: f64 = 600.0;
 /// third at 0.0037, where one chosen on its replicas forecast it at 0.0018.
 pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) -> LabCheckConfig {
     let tuning = tuning_set(cfg);
-    let lengths = spanning(
-        parts
-            .iter()
-            .map(|p| rig.length(g, p.diagnosis.w * p.diagnosis.w)),
-        REPLICA_LENGTH_SPREAD,
-    );
+    let lengths = period_lengths(parts, rig, g)
+        .map(|[lo, hi]| [lo / REPLICA_LENGTH_SPREAD, hi * REPLICA_LENGTH_SPREAD]);
     let swings = spanning(
         parts.iter().map(|p| p.diagnosis.amplitude[0]),
         REPLICA_SPREAD,
@@ -314,6 +310,16 @@ pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) ->
         dissipation: Some(dissipation),
         ..tuning
     }
+}
+
+/// The least and the greatest of the lengths of `rig` the first parts'
+/// swings give at `g` (`None` where there are none).
+pub fn period_lengths(parts: &[Part], rig: Rig, g: f64) -> Option<[f64; 2]> {
+    least_and_greatest(
+        parts
+            .iter()
+            .map(|p| rig.length(g, p.diagnosis.w * p.diagnosis.w)),
+    )
 }
 
 /// From the least of `values` over `factor` to the greatest times it

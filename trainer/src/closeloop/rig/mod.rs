@@ -82,6 +82,12 @@ pub const BUDGET_SECONDS: f64 = 720.0;
 /// recording may take on 2 cores, a minute left for the reads.
 pub const LIMIT_SECONDS: f64 = 840.0;
 
+/// Seconds the given blob's copy on the unit's length takes on the
+/// reference machine (`snapshot`): its calibration and its forecasts of
+/// the replicas. Measured on a 2-core machine that trains 2.6 times
+/// slower: 36 s the calibration, about 75 s in all, divided by that.
+pub const COPY_SECONDS: f64 = 30.0;
+
 /// Seconds a run is estimated to take after the recordings are read, at
 /// the `pace` probed: its `iterations`, and the rest besides with
 /// replicas lasting `replica_s`, slowed as the training is.
@@ -280,6 +286,9 @@ pub fn close_loop_rig(
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
         let room = || start.elapsed().as_secs_f64() + estimate(0) <= LIMIT_SECONDS;
+        let copy_room = || {
+            start.elapsed().as_secs_f64() + COPY_SECONDS * pace.slowdown() <= LIMIT_SECONDS
+        };
         let carried = given_cfg.effect.as_ref().map(|e| e.name);
         let given_blob = snapshot::Given {
             model: &given,
@@ -289,7 +298,9 @@ pub fn close_loop_rig(
                     .iter()
                     .any(|p| p.diagnosis.effects.iter().any(|e| e.name == c))
             }),
-            plan: &plan.cfg,
+            own: &given_cfg,
+            rig: opts.rig,
+            periods: around::period_lengths(&parts, opts.rig, opts.g),
         };
         let (choice, noise_kept) = snapshot::keep(
             &run,
@@ -298,6 +309,7 @@ pub fn close_loop_rig(
             &given_blob,
             (&tuning, &replicas),
             &room,
+            &copy_room,
         )?;
         (Some(choice), noise_kept.unwrap_or(noise))
     } else {

@@ -22,18 +22,21 @@ pub fn markdown(r: &RigLoopReport) -> String {
     let mut s = String::new();
     let c = &r.config;
     let _ = writeln!(s, "# close-loop: a rig blob\n");
-    let [lo, hi] = c.length_range();
     let written = match r.kept.as_ref().map(|k| k.kept) {
         Some(super::Kept::Given) => format!(
             "a copy of `{}`, unchanged: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
             r.given.display(),
             r.start
         ),
-        Some(super::Kept::GivenOnPlan) => format!(
-            "a copy of `{}` whose filter starts at these lengths ({lo:.3}..{hi:.3} m: its length prior their middle, half their range its std), its verdict calibrated on held-out draws of them; its model, noise and second parameter are the given blob's: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
-            r.given.display(),
-            r.start
-        ),
+        Some(super::Kept::GivenOnUnit) => {
+            let [ulo, uhi] = super::prior::unit_lengths(periods(r));
+            format!(
+                "a copy of `{}` whose filter starts at the unit's length ({ulo:.4}..{uhi:.4} m, the period's within {:.0}%: its length prior their middle, half their range its std), its verdict calibrated on held-out draws of those lengths, for this unit's next recordings; its model, noise and second parameter are the given blob's: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
+                r.given.display(),
+                100.0 * crate::closeloop::LENGTH_MARGIN,
+                r.start
+            )
+        }
         _ => r.start.clone(),
     };
     let _ = writeln!(
@@ -125,9 +128,9 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
             "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so it is the blob written, unchanged",
             r.given.display()
         )
-    } else if let super::Kept::GivenOnPlan = k.kept {
+    } else if let super::Kept::GivenOnUnit = k.kept {
         format!(
-            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so the blob written is the given blob started at the plan's lengths",
+            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so the blob written is the given blob started at the unit's length",
             r.given.display()
         )
     } else if let super::Kept::Iteration(at) = k.kept
@@ -154,15 +157,23 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
     );
 }
 
-/// What the given blob started at the plan's lengths forecast, or why
+/// The least and the greatest of the recordings' period's lengths.
+fn periods(r: &RigLoopReport) -> [f64; 2] {
+    r.recordings
+        .iter()
+        .map(|rec| rec.length_period)
+        .fold([f64::INFINITY, 0.0], |[lo, hi], l| [lo.min(l), hi.max(l)])
+}
+
+/// What the given blob started at the unit's length forecast, or why
 /// it was not weighed (empty where the given blob was not to be kept).
 fn started(k: &super::Choice) -> String {
-    match (k.on_plan, &k.on_plan_refused) {
+    match (k.on_unit, &k.on_unit_refused) {
         (Some(e), _) => format!(
-            "; started at the plan's lengths, it forecasts them at {e:.4}, {} than as it came",
+            "; started at the unit's length, it forecasts them at {e:.4}, {} than as it came",
             if e < k.given { "better" } else { "no better" }
         ),
-        (None, Some(why)) => format!("; started at the plan's lengths, it was not weighed: {why}"),
+        (None, Some(why)) => format!("; started at the unit's length, it was not weighed: {why}"),
         (None, None) => String::new(),
     }
 }
@@ -393,16 +404,16 @@ mod tests {
     /// figure on the replicas against the given blob's, or why it was not
     /// weighed (seed 83's replicas: given 0.2041, the copy 0.1760).
     #[test]
-    fn the_copy_on_the_plans_lengths_is_reported_or_why_not() {
-        let choice = |on_plan, refused: Option<&str>| Choice {
+    fn the_copy_on_the_units_length_is_reported_or_why_not() {
+        let choice = |on_unit, refused: Option<&str>| Choice {
             given: 0.2041,
             weighed: vec![Weighed {
                 iteration: 5000,
                 replicas: 0.2715,
             }],
             kept: Kept::Given,
-            on_plan,
-            on_plan_refused: refused.map(str::to_string),
+            on_unit,
+            on_unit_refused: refused.map(str::to_string),
         };
         let better = started(&choice(Some(0.1760), None));
         assert!(

@@ -6,7 +6,7 @@
 //! parameter is an effect the diagnoses name (the one added, or one drawn
 //! beside it), the given blob itself is kept: the loop never writes a
 //! blob for these effects that it has measured to forecast worse than
-//! the one it was given. It is kept started at the plan's lengths
+//! the one it was given. It is kept started at the unit's length
 //! (`prior`) where that copy forecasts the replicas better than the
 //! given blob as it came.
 //!
@@ -25,6 +25,7 @@ use anyhow::{Context, Result};
 use estimator::Model;
 use serde::Serialize;
 use trainer_core::labcheck::LabCheckConfig;
+use trainer_core::physics::Rig;
 
 use super::{noise, prior};
 use crate::learn::config::TrainConfig;
@@ -67,10 +68,10 @@ pub enum Kept {
     /// named, and no model of the fine-tuning forecast the replicas as
     /// well).
     Given,
-    /// The given blob with its filter's length prior the plan's
-    /// (`prior::on_plan_lengths`), where [`Kept::Given`] would be and it
+    /// The given blob with its filter's length prior the unit's
+    /// (`prior::on_unit_length`), where [`Kept::Given`] would be and it
     /// forecasts the replicas better than the given blob unchanged.
-    GivenOnPlan,
+    GivenOnUnit,
 }
 
 /// What was weighed and kept.
@@ -84,13 +85,13 @@ pub struct Choice {
     pub weighed: Vec<Weighed>,
     /// The model kept.
     pub kept: Kept,
-    /// The given blob started at the plan's lengths: its forecast error
+    /// The given blob started at the unit's length: its forecast error
     /// on the replicas, where the given blob was to be kept.
-    pub on_plan: Option<f64>,
+    pub on_unit: Option<f64>,
     /// Why there is no such copy where the given blob was to be kept (a
-    /// plan of another rig, a verdict that could not be calibrated, or
+    /// unit of another rig, a verdict that could not be calibrated, or
     /// no time left in the budget).
-    pub on_plan_refused: Option<String>,
+    pub on_unit_refused: Option<String>,
 }
 
 impl Choice {
@@ -120,12 +121,12 @@ pub fn choose(last: Weighed, snapshots: &[Weighed], given: f64, carries_effect: 
     }
 }
 
-/// Where `choose` keeps the given blob: its copy on the plan's lengths
-/// where that forecasts the replicas better (`on_plan`, its error) than
+/// Where `choose` keeps the given blob: its copy on the unit's length
+/// where that forecasts the replicas better (`on_unit`, its error) than
 /// the given blob as it came (`given`).
-pub fn choose_given(given: f64, on_plan: Option<f64>) -> Kept {
-    if on_plan.is_some_and(|e| e < given) {
-        Kept::GivenOnPlan
+pub fn choose_given(given: f64, on_unit: Option<f64>) -> Kept {
+    if on_unit.is_some_and(|e| e < given) {
+        Kept::GivenOnUnit
     } else {
         Kept::Given
     }
@@ -139,8 +140,14 @@ pub struct Given<'a> {
     pub path: &'a Path,
     /// Whether its second parameter is an effect the diagnoses name.
     pub carries_effect: bool,
-    /// The plan (its lengths and held-out draws: `prior::calibrated`).
-    pub plan: &'a TrainConfig,
+    /// Its training config (how its verdict was calibrated:
+    /// `prior::calibrated`).
+    pub own: &'a TrainConfig,
+    /// The recordings' rig.
+    pub rig: Rig,
+    /// The least and the greatest length the first parts' swings give
+    /// (`around::period_lengths`).
+    pub periods: Option<[f64; 2]>,
 }
 
 /// Keeps at `blob` the model of the run `dir` (whose last, of
@@ -149,9 +156,9 @@ pub struct Given<'a> {
 /// snapshot, in order while `room()` says another fits in the time, is
 /// exported with its noise chosen on `tuning` and the `replicas`. Where
 /// none forecasts them as well and the given carries an effect named,
-/// the given blob is written there, or its copy started at the plan's
-/// lengths where that forecasts them better (made while `room()` says
-/// it fits). Returns the choice and the kept
+/// the given blob is written there, or its copy started at the unit's
+/// length where that forecasts them better (made while `copy_room()`
+/// says it fits). Returns the choice and the kept
 /// export's noise pairs (`None`: the last's, already at `blob`; none
 /// for the given blob, whose noise this loop did not choose).
 pub fn keep(
@@ -161,6 +168,7 @@ pub fn keep(
     given: &Given<'_>,
     (tuning, replicas): (&LabCheckConfig, &LabCheckConfig),
     room: &dyn Fn() -> bool,
+    copy_room: &dyn Fn() -> bool,
 ) -> Result<(Choice, Option<Vec<crate::export::NoiseCandidate>>)> {
     let given_error = noise::forecast_error(given.model, replicas)?;
     let last = Weighed {
@@ -191,16 +199,16 @@ pub fn keep(
         given_error,
         given.carries_effect,
     );
-    let (mut on_plan, mut on_plan_refused) = (None, None);
+    let (mut on_unit, mut on_unit_refused) = (None, None);
     if kept == Kept::Given {
-        let copy = dir.join("given-on-plan").join("rig.kkf");
-        match room().then(|| write_on_plan(given, &copy, replicas)) {
-            Some(Ok(error)) => on_plan = Some(error),
-            Some(Err(e)) => on_plan_refused = Some(format!("{e:#}")),
-            None => on_plan_refused = Some("the time budget left no room".into()),
+        let copy = dir.join("given-on-unit").join("rig.kkf");
+        match copy_room().then(|| write_on_unit(given, &copy, replicas)) {
+            Some(Ok(error)) => on_unit = Some(error),
+            Some(Err(e)) => on_unit_refused = Some(format!("{e:#}")),
+            None => on_unit_refused = Some("the time budget left no room".into()),
         }
-        kept = choose_given(given_error, on_plan);
-        if kept == Kept::GivenOnPlan {
+        kept = choose_given(given_error, on_unit);
+        if kept == Kept::GivenOnUnit {
             write_as(&copy, blob)?;
         }
     }
@@ -218,34 +226,38 @@ pub fn keep(
             write_as(given.path, blob)?;
             Some(Vec::new())
         }
-        Kept::GivenOnPlan => Some(Vec::new()),
+        Kept::GivenOnUnit => Some(Vec::new()),
     };
     Ok((
         Choice {
             given: given_error,
             weighed,
             kept,
-            on_plan,
-            on_plan_refused,
+            on_unit,
+            on_unit_refused,
         },
         noise,
     ))
 }
 
-/// Writes the given blob on the plan's lengths, calibrated, to `to`
+/// Writes the given blob on the unit's length, calibrated, to `to`
 /// with its sidecar (the given blob's, its `trust` the new calibration
-/// and `prior_lengths` the plan's); returns its forecast error on the
-/// `replicas`. An error says why there is none (a plan of another rig,
-/// a verdict that could not be calibrated): the given blob is then kept
-/// as it came.
-fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<f64> {
-    let (bytes, trust) = prior::calibrated(given.model, given.plan)?.with_context(|| {
-        format!(
-            "the plan is of a {:?} rig, the given blob of a {:?} one",
-            given.plan.rig,
-            given.model.blob().body.rig
-        )
-    })?;
+/// and `prior_lengths` the unit's); returns its forecast error on the
+/// `replicas`. An error says why there is none (a unit of another rig,
+/// no length from the swings, a verdict that could not be calibrated):
+/// the given blob is then kept as it came.
+fn write_on_unit(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<f64> {
+    let periods = given
+        .periods
+        .context("the swings give no length to start the filter at")?;
+    let (bytes, trust) = prior::calibrated(given.model, given.own, given.rig, periods)?
+        .with_context(|| {
+            format!(
+                "the recordings are of a {:?} rig, the given blob of a {:?} one",
+                given.rig,
+                given.model.blob().body.rig
+            )
+        })?;
     if let Some(dir) = to.parent() {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -257,7 +269,7 @@ fn write_on_plan(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Res
         &trust,
         &[(
             "prior_lengths",
-            serde_json::json!(given.plan.length_range()),
+            serde_json::json!(prior::unit_lengths(periods)),
         )],
     )?;
     score(to, replicas)
@@ -350,13 +362,13 @@ mod tests {
         );
     }
 
-    /// Where the given blob is kept, its copy on the plan's lengths only
-    /// if that forecasts the replicas better; none made (a plan of
+    /// Where the given blob is kept, its copy on the unit's length only
+    /// if that forecasts the replicas better; none made (a unit of
     /// another rig) keeps the given blob. Figures: seed 83's replicas
     /// (given 0.204).
     #[test]
-    fn the_copy_on_the_plans_lengths_is_kept_only_where_it_forecasts_better() {
-        assert_eq!(choose_given(0.204, Some(0.15)), Kept::GivenOnPlan);
+    fn the_copy_on_the_units_length_is_kept_only_where_it_forecasts_better() {
+        assert_eq!(choose_given(0.204, Some(0.15)), Kept::GivenOnUnit);
         assert_eq!(choose_given(0.204, Some(0.204)), Kept::Given);
         assert_eq!(choose_given(0.204, Some(0.3)), Kept::Given);
         assert_eq!(choose_given(0.204, None), Kept::Given);
