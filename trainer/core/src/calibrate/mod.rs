@@ -149,6 +149,12 @@ pub struct CalibrateConfig {
     /// unit's lengths.
     #[serde(default)]
     pub lengths: Option<[f64; 2]>,
+    /// The least smallest trusted swing, rad: a blob whose filter starts
+    /// at one unit's length reads it right at any swing, down to swings
+    /// in the noise, whose unevenness is the noise's; it keeps the
+    /// smallest trusted swing of the blob it was copied from.
+    #[serde(default)]
+    pub min_swing_floor: f32,
 }
 
 /// How lab-like held-out rollouts are drawn: the training set's ranges
@@ -208,6 +214,7 @@ impl Default for CalibrateConfig {
             step_nis_margin: default_step_nis_margin(),
             lab: None,
             lengths: None,
+            min_swing_floor: 0.0,
         }
     }
 }
@@ -306,8 +313,14 @@ pub fn calibrate(
     let coarse = match &cfg.lab {
         Some(lab) => {
             let covered = f64::from(calibrated.body.trust.min_samples_per_period);
-            let (fewest, figures) =
-                coarse::fewest_read_right(&calibrated, lab, setup.lengths(), cfg.seed + 3, cfg.accurate, covered)?;
+            let (fewest, figures) = coarse::fewest_read_right(
+                &calibrated,
+                lab,
+                setup.lengths(),
+                cfg.seed + 3,
+                cfg.accurate,
+                covered,
+            )?;
             calibrated.body.trust.min_samples_per_period = fewest as f32;
             Some(figures)
         }
@@ -374,7 +387,9 @@ impl<'b, 'c> Setup<'b, 'c> {
     fn lengths(&self) -> [f32; 2] {
         self.cfg
             .lengths
-            .map_or(self.base.body.params[0].train_range, |l| l.map(|v| v as f32))
+            .map_or(self.base.body.params[0].train_range, |l| {
+                l.map(|v| v as f32)
+            })
     }
 
     /// The base blob with a trust section that passes everything but the

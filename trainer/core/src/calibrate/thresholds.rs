@@ -21,7 +21,8 @@
 //!   then makes `2 sqrt((a s)^2 + b^2)` cover as many after the window.
 //!   The effect's, where the blob declares one and the held-out rollouts
 //!   carry its truth, are set as the length's.
-//! - The smallest trusted swing ([`min_swing`]): among the
+//! - The smallest trusted swing ([`min_swing`], no less than
+//!   [`CalibrateConfig::min_swing_floor`]): among the
 //!   [`CalibrateConfig::swing_share`] of rollouts with the smallest
 //!   swings, just above the largest whose length is
 //!   [`CalibrateConfig::accurate`] or more off after the window.
@@ -77,7 +78,7 @@ pub(super) fn thresholds<'m>(
         setup
             .sampling
             .rollouts(setup.lengths(), cfg.rollouts, cfg.long_steps, cfg.seed + 1)?;
-    let min_swing = smallest_trusted_swing(&m, &cal, cfg)?;
+    let min_swing = smallest_trusted_swing(&m, &cal, cfg)?.max(cfg.min_swing_floor);
     // Then every other threshold with it in place, as the device runs:
     // the estimate held over a swing below it, the unevenness remembered
     // of the swings above it.

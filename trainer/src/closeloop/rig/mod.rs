@@ -286,9 +286,8 @@ pub fn close_loop_rig(
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
         let room = || start.elapsed().as_secs_f64() + estimate(0) <= LIMIT_SECONDS;
-        let copy_room = || {
-            start.elapsed().as_secs_f64() + COPY_SECONDS * pace.slowdown() <= LIMIT_SECONDS
-        };
+        let copy_room =
+            || start.elapsed().as_secs_f64() + COPY_SECONDS * pace.slowdown() <= LIMIT_SECONDS;
         let carried = given_cfg.effect.as_ref().map(|e| e.name);
         let given_blob = snapshot::Given {
             model: &given,

@@ -22,7 +22,7 @@
 
 use anyhow::Result;
 use estimator::{LATENT_DIM, Model, Rig};
-use trainer_core::calibrate::{Calibration, CalibrateConfig, blob_bytes};
+use trainer_core::calibrate::{CalibrateConfig, Calibration, blob_bytes};
 
 use super::super::LENGTH_MARGIN;
 use crate::export;
@@ -50,26 +50,26 @@ pub fn on_unit_length(given: &Model<'_>, rig: Rig, periods: [f64; 2]) -> Result<
     Ok(Some(blob_bytes(&blob)?))
 }
 
-/// [`on_unit_length`] with its verdict calibrated as the given blob's
-/// was (`own`, its training config: `export::calibration_for`), on
-/// held-out draws of the unit's lengths.
+/// [`on_unit_length`] with its verdict calibrated ([`calibration`]).
 pub fn calibrated(
     given: &Model<'_>,
     own: &TrainConfig,
     rig: Rig,
     periods: [f64; 2],
 ) -> Result<Option<(Vec<u8>, Calibration)>> {
-    let cfg = calibration(own, periods);
+    let cfg = calibration(own, given, periods);
     on_unit_length(given, rig, periods)?
         .map(|bytes| export::calibrate_with_progress(&bytes, &cfg))
         .transpose()
 }
 
-/// How the copy's verdict is calibrated: as the given blob's was (`own`,
-/// its training config), on draws of the unit's lengths.
-pub fn calibration(own: &TrainConfig, periods: [f64; 2]) -> CalibrateConfig {
+/// How the copy of `given` is calibrated: as the given blob was (`own`,
+/// its training config), on draws of the unit's lengths, trusting no
+/// smaller swing than the given blob does.
+pub fn calibration(own: &TrainConfig, given: &Model<'_>, periods: [f64; 2]) -> CalibrateConfig {
     CalibrateConfig {
         lengths: Some(unit_lengths(periods)),
+        min_swing_floor: given.blob().body.trust.min_swing,
         ..export::calibration_for(own)
     }
 }
@@ -160,17 +160,21 @@ mod tests {
     /// full calibration: 24), and trusts none of strings 20 to 32% longer
     /// (0.68 to 0.75 m): a length off its unit is flagged outside its
     /// range. Calibrated on the given blob's lengths instead, it trusted
-    /// 23 of those 24.
+    /// 23 of those 24. Its smallest trusted swing is no less than the
+    /// given blob's (0.072 rad; calibrated on the unit alone, 0, and
+    /// seed 89's right length was flagged by the unevenness of its
+    /// swings in the noise).
     #[test]
     fn calibrated_on_its_unit_it_reads_the_unit_and_flags_another_length() {
         use trainer_core::labcheck::{self, LabCheckConfig, Outcome};
 
-        let (_, copy_bytes) = on_seed_83s_unit();
+        let (given_bytes, copy_bytes) = on_seed_83s_unit();
+        let given = Model::from_bytes(&given_bytes).unwrap();
         let own = export::config_of(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../weights/rig.kkf"
         )));
-        let full = calibration(&own, [SEED_83_PERIOD; 2]);
+        let full = calibration(&own, &given, [SEED_83_PERIOD; 2]);
         let cfg = CalibrateConfig {
             map_rollouts: full.map_rollouts / 10,
             rollouts: full.rollouts / 10,
@@ -179,6 +183,8 @@ mod tests {
         let (bytes, _) =
             trainer_core::calibrate::calibrate(&copy_bytes, &cfg, &mut |_, _| {}).unwrap();
         let copy = Model::from_bytes(&bytes).unwrap();
+        let [smallest, given_smallest] = [&copy, &given].map(|m| m.blob().body.trust.min_swing);
+        assert!(smallest >= given_smallest, "{smallest} < {given_smallest}");
         let draw = |lengths, seed| {
             labcheck::run(
                 &copy,
