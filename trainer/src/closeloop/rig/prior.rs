@@ -17,8 +17,11 @@
 //!
 //! The swings' frequency fixes a length to well under [`LENGTH_MARGIN`]
 //! (the lab sets' periods' lengths lie within 0.4% of the truth), and
-//! the verdict flags a length read beyond the unit's by more than the
-//! accuracy: the copy is the unit's blob, for its next recordings.
+//! the verdict flags a length read outside its range, which lies within
+//! the accuracy (5%) of the unit's lengths: the copy is the unit's blob,
+//! for its next recordings. It trusts no smaller swing than the given
+//! blob: started at the right length, it reads it at any swing, but the
+//! unevenness of swings in the noise is the noise's.
 
 use anyhow::Result;
 use estimator::{LATENT_DIM, Model, Rig};
