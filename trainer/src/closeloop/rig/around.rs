@@ -151,11 +151,9 @@ pub fn plan(
 
 /// The lengths the first parts' swings give, widened by [`LENGTH_SPAN`].
 fn lengths(parts: &[Part], opts: &CloseLoopOptions) -> Result<[f64; 2]> {
-    let ls = parts
-        .iter()
-        .map(|p| opts.rig.length(opts.g, p.diagnosis.w * p.diagnosis.w));
-    let [lo, hi] = least_and_greatest(ls).context("the swings give no length to train around")?;
-    Ok([lo / LENGTH_SPAN, hi * LENGTH_SPAN])
+    period_lengths(parts, opts.rig, opts.g)
+        .map(|r| widened(r, LENGTH_SPAN))
+        .context("the swings give no length to train around")
 }
 
 /// Release angles from half the smallest swing a first part ends with
@@ -276,8 +274,7 @@ pub const REPLICA_SECONDS_MAX: f64 = 600.0;
 /// third at 0.0037, where one chosen on its replicas forecast it at 0.0018.
 pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) -> LabCheckConfig {
     let tuning = tuning_set(cfg);
-    let lengths = period_lengths(parts, rig, g)
-        .map(|[lo, hi]| [lo / REPLICA_LENGTH_SPREAD, hi * REPLICA_LENGTH_SPREAD]);
+    let lengths = period_lengths(parts, rig, g).map(|r| widened(r, REPLICA_LENGTH_SPREAD));
     let swings = spanning(
         parts.iter().map(|p| p.diagnosis.amplitude[0]),
         REPLICA_SPREAD,
@@ -296,8 +293,8 @@ pub fn replicas(cfg: &TrainConfig, parts: &[Part], rig: Rig, g: f64, dt: f64) ->
             && e.coefficient > 0.0
             && !dissipation.iter().any(|(k, _)| *k == e.name)
         {
-            if let Some([lo, hi]) = named_range(parts, e.name) {
-                dissipation.push((e.name, [lo / REPLICA_SPREAD, hi * REPLICA_SPREAD]));
+            if let Some(range) = named_range(parts, e.name) {
+                dissipation.push((e.name, widened(range, REPLICA_SPREAD)));
             }
         }
     }
@@ -325,7 +322,12 @@ pub fn period_lengths(parts: &[Part], rig: Rig, g: f64) -> Option<[f64; 2]> {
 /// From the least of `values` over `factor` to the greatest times it
 /// (`None` where the least is not positive).
 fn spanning(values: impl Iterator<Item = f64>, factor: f64) -> Option<[f64; 2]> {
-    least_and_greatest(values).map(|[lo, hi]| [lo / factor, hi * factor])
+    least_and_greatest(values).map(|r| widened(r, factor))
+}
+
+/// From `lo` over `factor` to `hi` times it.
+fn widened([lo, hi]: [f64; 2], factor: f64) -> [f64; 2] {
+    [lo / factor, hi * factor]
 }
 
 /// The least and the greatest of `values` (`None` where the least is not

@@ -22,23 +22,7 @@ pub fn markdown(r: &RigLoopReport) -> String {
     let mut s = String::new();
     let c = &r.config;
     let _ = writeln!(s, "# close-loop: a rig blob\n");
-    let written = match r.kept.as_ref().map(|k| k.kept) {
-        Some(super::Kept::Given) => format!(
-            "a copy of `{}`, unchanged: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
-            r.given.display(),
-            r.start
-        ),
-        Some(super::Kept::GivenOnUnit) => {
-            let [ulo, uhi] = super::prior::unit_lengths(periods(r));
-            format!(
-                "a copy of `{}` whose filter starts at the unit's length ({ulo:.4}..{uhi:.4} m, the period's within {:.0}%: its length prior their middle, half their range its std), its verdict calibrated on held-out draws of those lengths, for this unit's next recordings; its model, noise and second parameter are the given blob's: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {}",
-                r.given.display(),
-                100.0 * crate::closeloop::LENGTH_MARGIN,
-                r.start
-            )
-        }
-        _ => r.start.clone(),
-    };
+    let written = written(r.kept.as_ref(), &r.given, &r.start);
     let _ = writeln!(
         s,
         "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}, the training probed at {:.3} s an iteration).\n",
@@ -157,12 +141,25 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
     );
 }
 
-/// The least and the greatest of the recordings' period's lengths.
-fn periods(r: &RigLoopReport) -> [f64; 2] {
-    r.recordings
-        .iter()
-        .map(|rec| rec.length_period)
-        .fold([f64::INFINITY, 0.0], |[lo, hi], l| [lo.min(l), hi.max(l)])
+/// What the blob written is: the fine-tuning's model (`start`, how it
+/// was trained), or the `given` blob's copy, unchanged or started at the
+/// unit's length (the lengths the copy used).
+fn written(kept: Option<&super::Choice>, given: &std::path::Path, start: &str) -> String {
+    match kept.map(|k| (k.kept, k.unit_lengths)) {
+        Some((super::Kept::Given, _)) => format!(
+            "a copy of `{}`, unchanged: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {start}",
+            given.display(),
+        ),
+        Some((super::Kept::GivenOnUnit, lengths)) => {
+            let lengths = lengths.map_or(String::new(), |[lo, hi]| format!("{lo:.4}..{hi:.4} m, "));
+            format!(
+                "a copy of `{}` whose filter starts at the unit's length ({lengths}the period's within {:.0}%: its length prior their middle, half their range its std), its verdict calibrated on held-out draws of those lengths, for this unit's next recordings; its model, noise and second parameter are the given blob's: no model of the fine-tuning forecast the recordings' replicas as well (below). The fine-tuning: {start}",
+                given.display(),
+                100.0 * crate::closeloop::LENGTH_MARGIN,
+            )
+        }
+        _ => start.to_string(),
+    }
 }
 
 /// What the given blob started at the unit's length forecast, or why
@@ -397,7 +394,7 @@ fn second(b: &BlobRead) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{Goal, Score, started, window_read};
+    use super::{Goal, Score, started, window_read, written};
     use crate::closeloop::rig::snapshot::{Choice, Kept, Weighed};
 
     /// Where the given blob was to be kept, the report gives its copy's
@@ -413,6 +410,7 @@ mod tests {
             }],
             kept: Kept::Given,
             on_unit,
+            unit_lengths: None,
             on_unit_refused: refused.map(str::to_string),
         };
         let better = started(&choice(Some(0.1760), None));
@@ -428,6 +426,36 @@ mod tests {
             "{why}"
         );
         assert!(started(&choice(None, None)).is_empty());
+    }
+
+    /// The report names the lengths the copy started at, as the loop
+    /// kept them (seed 89's viscous + offset: the period's 0.7812 m, the
+    /// unit's 0.7734 to 0.7890 m), and says a fine-tuning's start where
+    /// its model was kept.
+    #[test]
+    fn the_blob_written_is_said_with_the_units_lengths_it_started_at() {
+        let choice = Choice {
+            given: 0.0425,
+            weighed: vec![Weighed {
+                iteration: 6000,
+                replicas: 0.0599,
+            }],
+            kept: Kept::GivenOnUnit,
+            on_unit: Some(0.0380),
+            unit_lengths: Some([0.773_372_4, 0.788_996_1]),
+            on_unit_refused: None,
+        };
+        let given = std::path::Path::new("weights/rig.kkf");
+        let said = written(Some(&choice), given, "fine-tuned");
+        assert!(
+            said.contains("starts at the unit's length (0.7734..0.7890 m, the period's within 1%"),
+            "{said}"
+        );
+        let tuned = Choice {
+            kept: Kept::Iteration(6000),
+            ..choice
+        };
+        assert_eq!(written(Some(&tuned), given, "fine-tuned"), "fine-tuned");
     }
 
     fn score(median: f64) -> Score {

@@ -88,6 +88,9 @@ pub struct Choice {
     /// The given blob started at the unit's length: its forecast error
     /// on the replicas, where the given blob was to be kept.
     pub on_unit: Option<f64>,
+    /// The unit's lengths that copy started at (`prior::unit_lengths`),
+    /// m, where it was made.
+    pub unit_lengths: Option<[f64; 2]>,
     /// Why there is no such copy where the given blob was to be kept (a
     /// unit of another rig, a verdict that could not be calibrated, or
     /// no time left in the budget).
@@ -234,6 +237,7 @@ pub fn keep(
             weighed,
             kept,
             on_unit,
+            unit_lengths: on_unit.and(given.periods.map(prior::unit_lengths)),
             on_unit_refused,
         },
         noise,
