@@ -161,9 +161,10 @@ mod tests {
     /// 0.571 m, swung at 0.1 to 0.4 rad for 40 to 60 s with the lab's
     /// dissipations) right and trusted on at least 20 of 24 (22 at the
     /// full calibration: 24), and trusts none of strings 20 to 32% longer
-    /// (0.68 to 0.75 m): a length off its unit is flagged outside its
-    /// range. Calibrated on the given blob's lengths instead, it trusted
-    /// 23 of those 24. Its smallest trusted swing is no less than the
+    /// (0.68 to 0.75 m) or 20 to 30% shorter (0.39 to 0.46 m): a length
+    /// off its unit is flagged outside its range. Calibrated on the given
+    /// blob's lengths instead, it trusted 23 of the longer 24, and
+    /// shorter ones too. Its smallest trusted swing is no less than the
     /// given blob's (0.072 rad; calibrated on the unit alone, 0, and
     /// seed 89's right length was flagged by the unevenness of its
     /// swings in the noise).
@@ -208,13 +209,14 @@ mod tests {
         let own_unit = draw([0.562, 0.571], 6);
         let read = own_unit.iter().filter(right).count();
         assert!(read >= 20, "{read} of 24 right and trusted");
-        let longer = draw([0.68, 0.75], 5);
-        let trusted: Vec<_> = longer
-            .iter()
-            .filter(|o| o.end.trust.is_trusted())
-            .map(|o| (o.length, o.end.length))
-            .collect();
-        assert!(trusted.is_empty(), "trusted off the unit: {trusted:?}");
+        for (lengths, seed) in [([0.68, 0.75], 5), ([0.39, 0.46], 4)] {
+            let trusted: Vec<_> = draw(lengths, seed)
+                .iter()
+                .filter(|o| o.end.trust.is_trusted())
+                .map(|o| (o.length, o.end.length))
+                .collect();
+            assert!(trusted.is_empty(), "trusted off the unit: {trusted:?}");
+        }
     }
 
     /// Seed 83's viscous + drag drawn anew (a 0.853 m rod, 0.57 m as a
