@@ -299,7 +299,7 @@ pub fn close_loop_rig(
             }),
             own: &given_cfg,
             rig: opts.rig,
-            periods: around::period_lengths(&parts, opts.rig, opts.g),
+            unit: around::period_lengths(&parts, opts.rig, opts.g).map(prior::unit_lengths),
         };
         let (choice, noise_kept) = snapshot::keep(
             &run,

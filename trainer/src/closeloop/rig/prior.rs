@@ -38,14 +38,14 @@ pub fn unit_lengths([lo, hi]: [f64; 2]) -> [f64; 2] {
 }
 
 /// The given blob's bytes with its filter's length prior that of the
-/// unit of `rig` whose swings give the lengths `periods`; `None` where
-/// the unit is of another rig than the given blob.
-pub fn on_unit_length(given: &Model<'_>, rig: Rig, periods: [f64; 2]) -> Result<Option<Vec<u8>>> {
+/// unit of `rig` whose lengths are `unit` ([`unit_lengths`]); `None`
+/// where the unit is of another rig than the given blob.
+pub fn on_unit_length(given: &Model<'_>, rig: Rig, unit: [f64; 2]) -> Result<Option<Vec<u8>>> {
     let mut blob = *given.blob();
     if blob.body.rig != rig {
         return Ok(None);
     }
-    let [mean, std] = length_prior(given, unit_lengths(periods));
+    let [mean, std] = length_prior(given, unit);
     blob.body.filter.prior_mean[0] = mean;
     if let Some(v) = blob.body.filter.prior_var.get_mut(LATENT_DIM) {
         *v = std * std;
@@ -58,10 +58,10 @@ pub fn calibrated(
     given: &Model<'_>,
     own: &TrainConfig,
     rig: Rig,
-    periods: [f64; 2],
+    unit: [f64; 2],
 ) -> Result<Option<(Vec<u8>, Calibration)>> {
-    let cfg = calibration(own, given, periods);
-    on_unit_length(given, rig, periods)?
+    let cfg = calibration(own, given, unit);
+    on_unit_length(given, rig, unit)?
         .map(|bytes| export::calibrate_with_progress(&bytes, &cfg))
         .transpose()
 }
@@ -69,9 +69,9 @@ pub fn calibrated(
 /// How the copy of `given` is calibrated: as the given blob was (`own`,
 /// its training config), on draws of the unit's lengths, trusting no
 /// smaller swing than the given blob does.
-pub fn calibration(own: &TrainConfig, given: &Model<'_>, periods: [f64; 2]) -> CalibrateConfig {
+pub fn calibration(own: &TrainConfig, given: &Model<'_>, unit: [f64; 2]) -> CalibrateConfig {
     CalibrateConfig {
-        lengths: Some(unit_lengths(periods)),
+        lengths: Some(unit),
         min_swing_floor: given.blob().body.trust.min_swing,
         ..export::calibration_for(own)
     }
@@ -101,7 +101,7 @@ mod tests {
             std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../weights/rig.kkf")).unwrap();
         let given = Model::from_bytes(&bytes).unwrap();
         let rig = given.blob().body.rig;
-        let copy = on_unit_length(&given, rig, [SEED_83_PERIOD; 2])
+        let copy = on_unit_length(&given, rig, unit_lengths([SEED_83_PERIOD; 2]))
             .unwrap()
             .unwrap();
         (bytes, copy)
@@ -150,7 +150,7 @@ mod tests {
         );
         assert_eq!(c.trust, g.trust);
         assert!(
-            on_unit_length(&given, Rig::Rod, [SEED_83_PERIOD; 2])
+            on_unit_length(&given, Rig::Rod, unit_lengths([SEED_83_PERIOD; 2]))
                 .unwrap()
                 .is_none()
         );
@@ -178,7 +178,7 @@ mod tests {
             env!("CARGO_MANIFEST_DIR"),
             "/../weights/rig.kkf"
         )));
-        let full = calibration(&own, &given, [SEED_83_PERIOD; 2]);
+        let full = calibration(&own, &given, unit_lengths([SEED_83_PERIOD; 2]));
         let cfg = CalibrateConfig {
             map_rollouts: full.map_rollouts / 10,
             rollouts: full.rollouts / 10,

@@ -148,9 +148,10 @@ pub struct Given<'a> {
     pub own: &'a TrainConfig,
     /// The recordings' rig.
     pub rig: Rig,
-    /// The least and the greatest length the first parts' swings give
-    /// (`around::period_lengths`).
-    pub periods: Option<[f64; 2]>,
+    /// The unit's lengths (`prior::unit_lengths` of those the first
+    /// parts' swings give, `around::period_lengths`; `None` where they
+    /// give none).
+    pub unit: Option<[f64; 2]>,
 }
 
 /// Keeps at `blob` the model of the run `dir` (whose last, of
@@ -237,7 +238,7 @@ pub fn keep(
             weighed,
             kept,
             on_unit,
-            unit_lengths: on_unit.and(given.periods.map(prior::unit_lengths)),
+            unit_lengths: on_unit.and(given.unit),
             on_unit_refused,
         },
         noise,
@@ -251,11 +252,11 @@ pub fn keep(
 /// no length from the swings, a verdict that could not be calibrated):
 /// the given blob is then kept as it came.
 fn write_on_unit(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Result<f64> {
-    let periods = given
-        .periods
+    let unit = given
+        .unit
         .context("the swings give no length to start the filter at")?;
-    let (bytes, trust) = prior::calibrated(given.model, given.own, given.rig, periods)?
-        .with_context(|| {
+    let (bytes, trust) =
+        prior::calibrated(given.model, given.own, given.rig, unit)?.with_context(|| {
             format!(
                 "the recordings are of a {:?} rig, the given blob of a {:?} one",
                 given.rig,
@@ -271,10 +272,7 @@ fn write_on_unit(given: &Given<'_>, to: &Path, replicas: &LabCheckConfig) -> Res
         to,
         &bytes,
         &trust,
-        &[(
-            "prior_lengths",
-            serde_json::json!(prior::unit_lengths(periods)),
-        )],
+        &[("prior_lengths", serde_json::json!(unit))],
     )?;
     score(to, replicas)
 }
