@@ -51,6 +51,7 @@ pub fn run(a: Args) -> Result<()> {
                 schedule_steps: a.schedule_steps,
                 q_latent: a.q_latent,
                 r_latent: a.r_latent,
+                ..ExportOptions::default()
             };
             let lab_run = kind == ModelKind::Bilinear && run::read(&a.run)?.0.lab.is_some();
             let info = if lab_run && a.r_latent.is_none() && a.q_latent.is_none() {

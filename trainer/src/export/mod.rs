@@ -101,6 +101,9 @@ pub struct ExportOptions {
     pub q_latent: Option<f64>,
     /// See `q_latent`.
     pub r_latent: Option<f64>,
+    /// The factor on the one-step latent residual that `Q`, `R` and the
+    /// latent prior are scaled by (1: the residual as measured).
+    pub latent_scale: f64,
 }
 
 impl Default for ExportOptions {
@@ -109,6 +112,7 @@ impl Default for ExportOptions {
             schedule_steps: (WINDOW - 1) as u16,
             q_latent: None,
             r_latent: None,
+            latent_scale: 1.0,
         }
     }
 }
@@ -116,6 +120,13 @@ impl Default for ExportOptions {
 /// Exports KLM run `dir` to the blob `out` with `opts`.
 pub fn export_with(dir: &Path, out: &Path, opts: &ExportOptions) -> Result<ExportInfo> {
     Prepared::open(dir)?.finish(opts, out)
+}
+
+/// The blob of KLM run `dir` with `opts`, its trust verdict not yet
+/// calibrated (the sigma threshold set, the other checks open): for a
+/// caller that calibrates it on draws of its own.
+pub fn draft_with(dir: &Path, opts: &ExportOptions) -> Result<Vec<u8>> {
+    Ok(Prepared::open(dir)?.draft(opts)?.0)
 }
 
 /// One candidate of [`export_selecting_noise`]: the filter's noise scales
@@ -404,10 +415,11 @@ impl Prepared {
         let mut q = [0.0f32; AUG_DIM];
         let mut r = [0.0f32; LATENT_DIM];
         let mut prior_var = [0.0f32; AUG_DIM];
+        let scale = opts.latent_scale as f32;
         for k in 0..LATENT_DIM {
-            q[k] = (cfg.q_latent as f32) * residual_var[k];
-            r[k] = (cfg.r_latent as f32) * residual_var[k];
-            prior_var[k] = residual_var[k];
+            q[k] = (cfg.q_latent as f32) * scale * residual_var[k];
+            r[k] = (cfg.r_latent as f32) * scale * residual_var[k];
+            prior_var[k] = scale * residual_var[k];
         }
         prior_var[LATENT_DIM] = (cfg.prior_std_length * cfg.prior_std_length) as f32;
         if let Some(e) = &cfg.effect {

@@ -45,6 +45,7 @@ mod pace;
 mod prior;
 mod read;
 mod report;
+mod rescaled;
 mod snapshot;
 
 pub use around::{

@@ -117,6 +117,11 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
             "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so the blob written is the given blob started at the unit's length",
             r.given.display()
         )
+    } else if let super::Kept::LastOnUnit = k.kept {
+        format!(
+            "no model weighed forecasts them as well as `{}`, whose second parameter is an effect named{started}, so the blob written is the fine-tuning's last model started at the unit's length, its latent noise rescaled",
+            r.given.display()
+        )
     } else if let super::Kept::Iteration(at) = k.kept
         && k.took_snapshot()
     {
@@ -142,8 +147,9 @@ fn kept(s: &mut String, k: &super::Choice, r: &RigLoopReport) {
 }
 
 /// What the blob written is: the fine-tuning's model (`start`, how it
-/// was trained), or the `given` blob's copy, unchanged or started at the
-/// unit's length (the lengths the copy used).
+/// was trained), the `given` blob's copy, unchanged or started at the
+/// unit's length, or the fine-tuning's last model started there (the
+/// lengths the copy used).
 fn written(kept: Option<&super::Choice>, given: &std::path::Path, start: &str) -> String {
     match kept.map(|k| (k.kept, k.unit_lengths)) {
         Some((super::Kept::Given, _)) => format!(
@@ -158,21 +164,51 @@ fn written(kept: Option<&super::Choice>, given: &std::path::Path, start: &str) -
                 100.0 * crate::closeloop::LENGTH_MARGIN,
             )
         }
+        Some((super::Kept::LastOnUnit, lengths)) => {
+            let lengths = lengths.map_or(String::new(), |[lo, hi]| format!("{lo:.4}..{hi:.4} m, "));
+            let scale = kept
+                .and_then(|k| k.last_on_unit)
+                .map_or(String::new(), |r| format!(" {:.0} times", r.latent_scale));
+            format!(
+                "the fine-tuning's last model with its filter started at the unit's length ({lengths}the period's within {:.0}%: its length prior their middle, half their range its std) and its latent noise scaled{scale} to the given blob's (its dynamics were fitted on the noise-free twin), its verdict calibrated on held-out draws of those lengths, for this unit's next recordings. The fine-tuning: {start}",
+                100.0 * crate::closeloop::LENGTH_MARGIN,
+            )
+        }
         _ => start.to_string(),
     }
 }
 
-/// What the given blob started at the unit's length forecast, or why
-/// it was not weighed (empty where the given blob was not to be kept).
+/// What the given blob started at the unit's length forecast, and the
+/// fine-tuning's last model started there, or why each was not weighed
+/// (empty where the given blob was not to be kept).
 fn started(k: &super::Choice) -> String {
-    match (k.on_unit, &k.on_unit_refused) {
+    let given = match (k.on_unit, &k.on_unit_refused) {
         (Some(e), _) => format!(
             "; started at the unit's length, it forecasts them at {e:.4}, {} than as it came",
             if e < k.given { "better" } else { "no better" }
         ),
         (None, Some(why)) => format!("; started at the unit's length, it was not weighed: {why}"),
         (None, None) => String::new(),
-    }
+    };
+    let last = match (k.last_on_unit, &k.last_on_unit_refused) {
+        (Some(r), _) => format!(
+            "; the fine-tuning's last model started there, its latent noise scaled {:.0} times to the given blob's, forecasts them at {:.4} and trusts {} of {} draws of strings off the unit{}",
+            r.latent_scale,
+            r.replicas,
+            r.off_unit_trusted,
+            r.off_unit_drawn,
+            if r.flags_off_unit() {
+                ""
+            } else {
+                " (so it is not kept: it may read another string as the unit)"
+            }
+        ),
+        (None, Some(why)) => format!(
+            "; the fine-tuning's last model started there, its latent noise rescaled, was not weighed: {why}"
+        ),
+        (None, None) => String::new(),
+    };
+    format!("{given}{last}")
 }
 
 /// One recording's table and goal line.
@@ -412,6 +448,8 @@ mod tests {
             on_unit,
             unit_lengths: None,
             on_unit_refused: refused.map(str::to_string),
+            last_on_unit: None,
+            last_on_unit_refused: None,
         };
         let better = started(&choice(Some(0.1760), None));
         assert!(
@@ -426,6 +464,26 @@ mod tests {
             "{why}"
         );
         assert!(started(&choice(None, None)).is_empty());
+        let flagged = |trusted| Choice {
+            last_on_unit: Some(crate::closeloop::rig::rescaled::Rescaled {
+                latent_scale: 155.2,
+                replicas: 0.0287,
+                off_unit_trusted: trusted,
+                off_unit_drawn: 48,
+            }),
+            ..choice(Some(0.0380), None)
+        };
+        let kept = started(&flagged(0));
+        assert!(
+            kept.contains("scaled 155 times to the given blob's, forecasts them at 0.0287 and trusts 0 of 48 draws of strings off the unit")
+                && !kept.contains("not kept"),
+            "{kept}"
+        );
+        let refused = started(&flagged(1));
+        assert!(
+            refused.contains("trusts 1 of 48") && refused.contains("not kept"),
+            "{refused}"
+        );
     }
 
     /// The report names the lengths the copy started at, as the loop
@@ -444,6 +502,8 @@ mod tests {
             on_unit: Some(0.0380),
             unit_lengths: Some([0.773_372_4, 0.788_996_1]),
             on_unit_refused: None,
+            last_on_unit: None,
+            last_on_unit_refused: None,
         };
         let given = std::path::Path::new("weights/rig.kkf");
         let said = written(Some(&choice), given, "fine-tuned");
@@ -453,9 +513,26 @@ mod tests {
         );
         let tuned = Choice {
             kept: Kept::Iteration(6000),
-            ..choice
+            ..choice.clone()
         };
         assert_eq!(written(Some(&tuned), given, "fine-tuned"), "fine-tuned");
+        let last = Choice {
+            kept: Kept::LastOnUnit,
+            last_on_unit: Some(crate::closeloop::rig::rescaled::Rescaled {
+                latent_scale: 155.2,
+                replicas: 0.0287,
+                off_unit_trusted: 0,
+                off_unit_drawn: 48,
+            }),
+            ..choice
+        };
+        let said = written(Some(&last), given, "fine-tuned");
+        assert!(
+            said.starts_with("the fine-tuning's last model with its filter started at the unit's length (0.7734..0.7890 m")
+                && said.contains("scaled 155 times to the given blob's")
+                && said.ends_with("The fine-tuning: fine-tuned"),
+            "{said}"
+        );
     }
 
     fn score(median: f64) -> Score {

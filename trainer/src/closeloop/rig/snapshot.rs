@@ -8,7 +8,10 @@
 //! blob for these effects that it has measured to forecast worse than
 //! the one it was given. It is kept started at the unit's length
 //! (`prior`) where that copy forecasts the replicas better than the
-//! given blob as it came.
+//! given blob as it came; and the fine-tuning's last model started
+//! there with its latent noise at the given blob's scale (`rescaled`) is
+//! kept instead where it forecasts them better still and flags every
+//! draw of a string off the unit.
 //!
 //! The replicas are drawn from the first parts' diagnoses alone, and
 //! their forecasts foretell the held-out ones: over the 27 lab recordings
@@ -27,7 +30,7 @@ use serde::Serialize;
 use trainer_core::labcheck::LabCheckConfig;
 use trainer_core::physics::Rig;
 
-use super::{noise, prior};
+use super::{noise, prior, rescaled};
 use crate::learn::config::TrainConfig;
 use crate::learn::run::{self, RunPaths};
 
@@ -72,6 +75,12 @@ pub enum Kept {
     /// (`prior::on_unit_length`), where [`Kept::Given`] would be and it
     /// forecasts the replicas better than the given blob unchanged.
     GivenOnUnit,
+    /// The fine-tuning's last model started at the unit's length, its
+    /// latent noise at the given blob's scale (`rescaled`), where
+    /// [`Kept::Given`] would be and it forecasts the replicas better than
+    /// both the given blob and its copy on the unit's length, flagging
+    /// every draw off the unit.
+    LastOnUnit,
 }
 
 /// What was weighed and kept.
@@ -95,6 +104,11 @@ pub struct Choice {
     /// unit of another rig, a verdict that could not be calibrated, or
     /// no time left in the budget).
     pub on_unit_refused: Option<String>,
+    /// The fine-tuning's last model on the unit's length, its latent
+    /// noise rescaled: what it did, where the given blob was to be kept.
+    pub last_on_unit: Option<rescaled::Rescaled>,
+    /// Why there is none where the given blob was to be kept.
+    pub last_on_unit_refused: Option<String>,
 }
 
 impl Choice {
@@ -124,15 +138,24 @@ pub fn choose(last: Weighed, snapshots: &[Weighed], given: f64, carries_effect: 
     }
 }
 
-/// Where `choose` keeps the given blob: its copy on the unit's length
-/// where that forecasts the replicas better (`on_unit`, its error) than
-/// the given blob as it came (`given`).
-pub fn choose_given(given: f64, on_unit: Option<f64>) -> Kept {
-    if on_unit.is_some_and(|e| e < given) {
-        Kept::GivenOnUnit
-    } else {
-        Kept::Given
+/// Where `choose` keeps the given blob: of it as it came (its error on
+/// the replicas `given`), its copy on the unit's length (`on_unit`) and
+/// the fine-tuning's last model there (`last_on_unit`, only where it
+/// flagged every draw off the unit), the one that forecasts them best,
+/// the earlier of equals.
+pub fn choose_given(given: f64, on_unit: Option<f64>, last_on_unit: Option<f64>) -> Kept {
+    let mut best = (Kept::Given, given);
+    for (kept, error) in [
+        (Kept::GivenOnUnit, on_unit),
+        (Kept::LastOnUnit, last_on_unit),
+    ] {
+        if let Some(e) = error
+            && e < best.1
+        {
+            best = (kept, e);
+        }
     }
+    best.0
 }
 
 /// The blob the loop was given.
@@ -204,16 +227,27 @@ pub fn keep(
         given.carries_effect,
     );
     let (mut on_unit, mut on_unit_refused) = (None, None);
+    let (mut last_on_unit, mut last_on_unit_refused) = (None, None);
     if kept == Kept::Given {
+        let no_room = || "the time budget left no room".to_string();
         let copy = dir.join("given-on-unit").join("rig.kkf");
         match copy_room().then(|| write_on_unit(given, &copy, replicas)) {
             Some(Ok(error)) => on_unit = Some(error),
             Some(Err(e)) => on_unit_refused = Some(format!("{e:#}")),
-            None => on_unit_refused = Some("the time budget left no room".into()),
+            None => on_unit_refused = Some(no_room()),
         }
-        kept = choose_given(given_error, on_unit);
-        if kept == Kept::GivenOnUnit {
-            write_as(&copy, blob)?;
+        let last_copy = dir.join("last-on-unit").join("rig.kkf");
+        match copy_room().then(|| rescaled::write(dir, blob, given, &last_copy, replicas)) {
+            Some(Ok(r)) => last_on_unit = Some(r),
+            Some(Err(e)) => last_on_unit_refused = Some(format!("{e:#}")),
+            None => last_on_unit_refused = Some(no_room()),
+        }
+        let flagging = last_on_unit.filter(rescaled::Rescaled::flags_off_unit);
+        kept = choose_given(given_error, on_unit, flagging.map(|r| r.replicas));
+        match kept {
+            Kept::GivenOnUnit => write_as(&copy, blob)?,
+            Kept::LastOnUnit => write_as(&last_copy, blob)?,
+            _ => {}
         }
     }
     let noise = match kept {
@@ -231,6 +265,7 @@ pub fn keep(
             Some(Vec::new())
         }
         Kept::GivenOnUnit => Some(Vec::new()),
+        Kept::LastOnUnit => None,
     };
     Ok((
         Choice {
@@ -238,8 +273,10 @@ pub fn keep(
             weighed,
             kept,
             on_unit,
-            unit_lengths: on_unit.and(given.unit),
+            unit_lengths: on_unit.or(last_on_unit.map(|r| r.replicas)).and(given.unit),
             on_unit_refused,
+            last_on_unit,
+            last_on_unit_refused,
         },
         noise,
     ))
@@ -370,10 +407,36 @@ mod tests {
     /// (given 0.204).
     #[test]
     fn the_copy_on_the_units_length_is_kept_only_where_it_forecasts_better() {
-        assert_eq!(choose_given(0.204, Some(0.15)), Kept::GivenOnUnit);
-        assert_eq!(choose_given(0.204, Some(0.204)), Kept::Given);
-        assert_eq!(choose_given(0.204, Some(0.3)), Kept::Given);
-        assert_eq!(choose_given(0.204, None), Kept::Given);
-        assert_eq!(choose_given(0.204, Some(f64::NAN)), Kept::Given);
+        assert_eq!(choose_given(0.204, Some(0.15), None), Kept::GivenOnUnit);
+        assert_eq!(choose_given(0.204, Some(0.204), None), Kept::Given);
+        assert_eq!(choose_given(0.204, Some(0.3), None), Kept::Given);
+        assert_eq!(choose_given(0.204, None, None), Kept::Given);
+        assert_eq!(choose_given(0.204, Some(f64::NAN), None), Kept::Given);
+    }
+
+    /// The fine-tuning's last model on the unit's length only where it
+    /// forecasts the replicas better than both the given blob and its
+    /// copy; equal to the copy, the copy. Figures: seed 89's viscous +
+    /// offset (given 0.0425, its copy 0.0380, the last's 0.0287).
+    #[test]
+    fn the_last_model_on_the_units_length_is_kept_only_where_it_forecasts_best() {
+        assert_eq!(
+            choose_given(0.0425, Some(0.0380), Some(0.0287)),
+            Kept::LastOnUnit
+        );
+        assert_eq!(
+            choose_given(0.0425, Some(0.0380), Some(0.0380)),
+            Kept::GivenOnUnit
+        );
+        assert_eq!(
+            choose_given(0.0425, Some(0.0380), Some(0.0400)),
+            Kept::GivenOnUnit
+        );
+        assert_eq!(choose_given(0.0425, None, Some(0.0287)), Kept::LastOnUnit);
+        assert_eq!(choose_given(0.0425, None, Some(0.05)), Kept::Given);
+        assert_eq!(
+            choose_given(0.0425, Some(0.05), Some(f64::NAN)),
+            Kept::Given
+        );
     }
 }
