@@ -22,11 +22,10 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use estimator::{LATENT_DIM, Model};
+use estimator::{LATENT_DIM, Model, Rig};
 use serde::Serialize;
 use trainer_core::labcheck::{self, LabCheckConfig};
 
-use super::snapshot::Given;
 use super::{noise, prior};
 use crate::export::{self, ExportOptions};
 
@@ -97,24 +96,22 @@ pub fn off_unit(replicas: &LabCheckConfig, [lo, hi]: [f64; 2]) -> [LabCheckConfi
 }
 
 /// Writes to `to`, with its sidecar, the last model of the run `dir`
-/// (exported at `last`) started at the given blob's unit, its latent
-/// noise scaled to the given blob's; returns what it did on the
-/// `replicas` and off the unit. An error says why there is none.
+/// (exported at `last`) started at the unit of `rig` whose lengths are
+/// `unit` (`prior::unit_lengths`), its latent noise scaled to the
+/// `given` blob's; returns what it did on the `replicas` and off the
+/// unit. An error says why there is none.
 pub fn write(
-    dir: &Path,
-    last: &Path,
-    given: &Given<'_>,
+    (dir, last): (&Path, &Path),
+    given: &Model<'_>,
+    (rig, unit): (Rig, [f64; 2]),
     to: &Path,
     replicas: &LabCheckConfig,
 ) -> Result<Rescaled> {
-    let unit = given
-        .unit
-        .context("the swings give no length to start the filter at")?;
     let last_bytes =
         std::fs::read(last).with_context(|| format!("{}: cannot read", last.display()))?;
     let last_model =
         Model::from_bytes(&last_bytes).map_err(|e| anyhow::anyhow!("{}: {e}", last.display()))?;
-    let scale = latent_scale(given.model, &last_model);
+    let scale = latent_scale(given, &last_model);
     anyhow::ensure!(
         scale.is_finite() && scale > 1.0,
         "its latent noise is no smaller than the given blob's (the factor {scale:.3})"
@@ -130,15 +127,14 @@ pub fn write(
         },
     )?;
     let draft = Model::from_bytes(&draft).map_err(|e| anyhow::anyhow!("the draft: {e}"))?;
-    let copy = prior::on_unit_length(&draft, given.rig, unit)?.with_context(|| {
+    let copy = prior::on_unit_length(&draft, rig, unit)?.with_context(|| {
         format!(
-            "the recordings are of a {:?} rig, the fine-tuning's of a {:?} one",
-            given.rig,
+            "the recordings are of a {rig:?} rig, the fine-tuning's of a {:?} one",
             draft.blob().body.rig
         )
     })?;
     let (bytes, trust) =
-        export::calibrate_with_progress(&copy, &prior::calibration(&own, given.model, unit))?;
+        export::calibrate_with_progress(&copy, &prior::calibration(&own, given, unit))?;
     let model = Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("the copy: {e}"))?;
     let mut trusted = 0;
     let mut drawn = 0;

@@ -237,7 +237,19 @@ pub fn keep(
             None => on_unit_refused = Some(no_room()),
         }
         let last_copy = dir.join("last-on-unit").join("rig.kkf");
-        match copy_room().then(|| rescaled::write(dir, blob, given, &last_copy, replicas)) {
+        let write_last = || {
+            let unit = given
+                .unit
+                .context("the swings give no length to start the filter at")?;
+            rescaled::write(
+                (dir, blob),
+                given.model,
+                (given.rig, unit),
+                &last_copy,
+                replicas,
+            )
+        };
+        match copy_room().then(write_last) {
             Some(Ok(r)) => last_on_unit = Some(r),
             Some(Err(e)) => last_on_unit_refused = Some(format!("{e:#}")),
             None => last_on_unit_refused = Some(no_room()),
