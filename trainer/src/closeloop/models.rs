@@ -166,7 +166,7 @@ fn train_and_export(
 /// Trains the model of `cfg` into the run directory `run`, showing
 /// progress on `bar`: a finished training with the same config is
 /// reused, a killed one resumed, any other replaced.
-pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<()> {
+pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<RunState> {
     let paths = RunPaths::new(run);
     let done: Option<RunState> = std::fs::read_to_string(&paths.state)
         .ok()
@@ -177,16 +177,13 @@ pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> 
         .ok()
         .is_some_and(|s| serde_json::to_string_pretty(&cfg).is_ok_and(|c| c == s));
     match done {
-        Some(s) if same && s.iteration >= cfg.iterations => {}
-        Some(_) if same => {
-            train::train_with(run, cfg, true, bar)?;
-        }
+        Some(s) if same && s.iteration >= cfg.iterations => Ok(s),
+        Some(_) if same => train::train_with(run, cfg, true, bar),
         _ => {
             let _ = std::fs::remove_dir_all(run);
-            train::train_with(run, cfg, false, bar)?;
+            train::train_with(run, cfg, false, bar)
         }
     }
-    Ok(())
 }
 
 /// A trained and exported model: its blob and the noise it was exported

@@ -130,23 +130,43 @@ fn within_budget(asked: usize, least: usize, estimate: impl Fn(usize) -> f64) ->
     n
 }
 
-/// What the time estimate says of weighing a fine-tuning's snapshots
-/// (`snapshot`): `all` seconds for every copy, `room` left under
-/// [`LIMIT_SECONDS`] by the estimate (none where there are no copies).
-fn weighing_said(all: f64, room: f64) -> String {
-    let minutes = all.min(room) / 60.0;
-    if all <= 0.0 {
+/// Seconds a run may take beyond its estimate where the fine-tuning's
+/// last model forecasts the replicas worse than the given blob: its
+/// snapshots weighed (`snapshots_s` for all) and, where the given blob
+/// may be kept, the copies (`copies_s`), each only while it fits under
+/// [`LIMIT_SECONDS`], which the `estimated` run leaves room for.
+fn weighing_seconds(snapshots_s: f64, copies_s: f64, estimated: f64) -> f64 {
+    (snapshots_s + copies_s).min((LIMIT_SECONDS - estimated).max(0.0))
+}
+
+/// What the time estimate says of the `more` seconds a fine-tuning may
+/// take ([`weighing_seconds`]; none where there is nothing to weigh).
+fn weighing_said(more: f64, copies: bool) -> String {
+    let what = if copies {
+        "its snapshots, then the given blob's copy and its last model's on the unit's length, are weighed"
+    } else {
+        "its snapshots are weighed"
+    };
+    if more <= 0.0 {
         String::new()
-    } else if minutes < 0.5 {
-        format!(
-            ", and its snapshots weighed where its last model forecasts the recordings' replicas worse than the given blob only if the run is under {:.0} min by then",
-            LIMIT_SECONDS / 60.0
-        )
     } else {
         format!(
-            ", and up to {minutes:.0} more where its last model forecasts the recordings' replicas worse than the given blob (its snapshots are weighed)"
+            ", and up to {:.1} more where its last model forecasts the recordings' replicas worse than the given blob ({what}, each while the run stays under {:.0} min)",
+            more / 60.0,
+            LIMIT_SECONDS / 60.0
         )
     }
+}
+
+/// Whether the given blob's second parameter (its training config
+/// `given`) is an effect the `parts`' diagnoses name: where it is, the
+/// given blob may be kept (`snapshot`).
+fn carries_effect(given: &TrainConfig, parts: &[parts::Part]) -> bool {
+    given.effect.as_ref().is_some_and(|c| {
+        parts
+            .iter()
+            .any(|p| p.diagnosis.effects.iter().any(|e| e.name == c.name))
+    })
 }
 
 /// One recording, before and after.
@@ -194,8 +214,15 @@ pub struct RigLoopReport {
     /// The time estimated before training, s, with the time the reading
     /// and diagnosis took before it.
     pub estimated_seconds: f64,
+    /// Seconds the run may take beyond `estimated_seconds` where the
+    /// fine-tuning's last model forecasts the replicas worse than the
+    /// given blob (its snapshots and the copies weighed, each while the
+    /// run stays under [`LIMIT_SECONDS`]).
+    pub estimated_more_seconds: f64,
     /// The training's pace probed before it (`pace`).
     pub pace: Pace,
+    /// The pace the training ran at (`None` where it ran no iterations).
+    pub trained: Option<Pace>,
     /// The filter's noise pairs tried for the model kept, and their
     /// scores (`noise`).
     pub noise: Vec<export::NoiseCandidate>,
@@ -267,6 +294,18 @@ pub fn close_loop_rig(
         plan.cfg.snapshots = snapshot::iterations(plan.cfg.iterations);
     }
     let estimated = estimate(plan.cfg.iterations);
+    let carries_effect = carries_effect(&given_cfg, &parts);
+    let copy_s = COPY_SECONDS * pace.slowdown();
+    let copies = if carries_effect { COPIES } else { 0.0 };
+    let more = if plan.cfg.warm_start.is_some() {
+        weighing_seconds(
+            plan.cfg.snapshots.len() as f64 * estimate(0),
+            copies * copy_s,
+            estimated + start.elapsed().as_secs_f64(),
+        )
+    } else {
+        0.0
+    };
     let [lo, hi] = plan.cfg.length_range();
     say(&format!(
         "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min here (the training at {:.3} s an iteration){}",
@@ -283,10 +322,7 @@ pub fn close_loop_rig(
         plan.start,
         estimated / 60.0,
         pace.seconds_per_iteration,
-        weighing_said(
-            plan.cfg.snapshots.len() as f64 * estimate(0),
-            LIMIT_SECONDS - estimated
-        )
+        weighing_said(more, carries_effect)
     ));
     let estimated = estimated + start.elapsed().as_secs_f64();
     // 3. Train, export, calibrate.
@@ -296,21 +332,14 @@ pub fn close_loop_rig(
     } else {
         ProgressBar::new(0)
     };
-    models::train_or_reuse(&run, plan.cfg.clone(), bar)?;
+    let trained = models::train_or_reuse(&run, plan.cfg.clone(), bar)?;
+    let trained = Pace::of_training(trained.iteration, trained.train_seconds);
     let blob = out.join("rig.kkf");
     say("choosing the filter's noise and calibrating the verdict");
     let tuning = around::tuning_set(&plan.cfg);
     let (_, noise) = noise::export(&run, &blob, &tuning, &replicas)?;
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
-        let carried = given_cfg.effect.as_ref().map(|e| e.name);
-        let carries_effect = carried.is_some_and(|c| {
-            parts
-                .iter()
-                .any(|p| p.diagnosis.effects.iter().any(|e| e.name == c))
-        });
-        let copy_s = COPY_SECONDS * pace.slowdown();
-        let copies = if carries_effect { COPIES } else { 0.0 };
         let room = || snapshot_room(start.elapsed().as_secs_f64(), estimate(0), (copies, copy_s));
         let copy_room = || start.elapsed().as_secs_f64() + copy_s <= LIMIT_SECONDS;
         let given_blob = snapshot::Given {
@@ -362,7 +391,9 @@ pub fn close_loop_rig(
         effect_reason: plan.effect_reason,
         config: plan.cfg,
         estimated_seconds: estimated,
+        estimated_more_seconds: more,
         pace,
+        trained,
         noise,
         kept,
         recordings,
@@ -397,6 +428,27 @@ mod tests {
         // Ending at the limit is within it.
         assert!(snapshot_room(LIMIT_SECONDS - 135.0, 75.0, (COPIES, 30.0)));
         assert!(!snapshot_room(LIMIT_SECONDS - 134.0, 75.0, (COPIES, 30.0)));
+    }
+
+    /// Seed 89's viscous + offset at the default, estimated 678 s on a
+    /// machine 1.2 times slower than the reference (three snapshots of
+    /// 92 s, two copies of 36 s): it may take up to 162 s more, to the
+    /// limit, and took 822 s in all; where all fits under the limit, all
+    /// of it; an estimate past the limit leaves none. The sentence names
+    /// the copies only where they may be made.
+    #[test]
+    fn the_estimate_says_how_much_more_the_weighing_may_take() {
+        assert!((weighing_seconds(3.0 * 92.0, 72.0, 678.0) - 162.0).abs() < 1e-9);
+        assert!(678.0 + weighing_seconds(3.0 * 92.0, 72.0, 678.0) >= 822.0);
+        assert!((weighing_seconds(92.0, 0.0, 600.0) - 92.0).abs() < 1e-9);
+        assert_eq!(weighing_seconds(92.0, 72.0, LIMIT_SECONDS + 1.0), 0.0);
+        assert_eq!(weighing_said(0.0, true), "");
+        let [with, without] = [true, false].map(|c| weighing_said(162.0, c));
+        assert!(
+            with.contains("up to 2.7 more") && with.contains("copy"),
+            "{with}"
+        );
+        assert!(!without.contains("copy"), "{without}");
     }
 
     /// On the reference machine a lab recording of a minute, q2 (385 s)

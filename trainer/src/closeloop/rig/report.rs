@@ -25,7 +25,7 @@ pub fn markdown(r: &RigLoopReport) -> String {
     let written = written(r.kept.as_ref(), &r.given, &r.start);
     let _ = writeln!(
         s,
-        "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}, the training probed at {:.3} s an iteration).\n",
+        "Wrote `{}` (with its sidecar), {written}. Its second parameter: {}. Trained on {} lab-like draws, lengths {:.3}..{:.3} m ({}), swings {:.2}..{:.2} rad, {} iterations (seed {}); {:.1} min in all (estimated {:.1}{}, the training probed at {:.3} s an iteration{}).\n",
         r.blob.display(),
         r.effect_reason,
         c.lab.as_ref().map_or(0, |d| d.rollouts),
@@ -38,7 +38,19 @@ pub fn markdown(r: &RigLoopReport) -> String {
         c.seed,
         r.seconds / 60.0,
         r.estimated_seconds / 60.0,
+        if r.estimated_more_seconds > 0.0 {
+            format!(
+                ", up to {:.1} more where its snapshots or copies were to be weighed",
+                r.estimated_more_seconds / 60.0
+            )
+        } else {
+            String::new()
+        },
         r.pace.seconds_per_iteration,
+        r.trained.map_or(String::new(), |p| format!(
+            ", ran at {:.3}",
+            p.seconds_per_iteration
+        )),
     );
     if let Some(k) = &r.kept {
         kept(&mut s, k, r);
