@@ -134,7 +134,7 @@ fn train_and_export(
 ) -> Result<(PathBuf, NoiseChoice)> {
     let dt = cfg.dt;
     let run = dir.join("run");
-    train_or_reuse(&run, cfg, bar)?;
+    train_or_reuse(&run, cfg, bar, None)?;
     let blob = dir.join("model.kkf");
     // The first parts long enough for forecasts of their own (one after a
     // gap or a dying swing may not be); with none, every scale is refused
@@ -164,9 +164,15 @@ fn train_and_export(
 }
 
 /// Trains the model of `cfg` into the run directory `run`, showing
-/// progress on `bar`: a finished training with the same config is
-/// reused, a killed one resumed, any other replaced.
-pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> Result<RunState> {
+/// progress on `bar`, stopping past the `deadline` (`train::train_until`):
+/// a finished training with the same config is reused, a killed or
+/// stopped one resumed, any other replaced.
+pub(super) fn train_or_reuse(
+    run: &Path,
+    cfg: TrainConfig,
+    bar: ProgressBar,
+    deadline: Option<std::time::Instant>,
+) -> Result<RunState> {
     let paths = RunPaths::new(run);
     let done: Option<RunState> = std::fs::read_to_string(&paths.state)
         .ok()
@@ -178,10 +184,10 @@ pub(super) fn train_or_reuse(run: &Path, cfg: TrainConfig, bar: ProgressBar) -> 
         .is_some_and(|s| serde_json::to_string_pretty(&cfg).is_ok_and(|c| c == s));
     match done {
         Some(s) if same && s.iteration >= cfg.iterations => Ok(s),
-        Some(_) if same => train::train_with(run, cfg, true, bar),
+        Some(_) if same => train::train_until(run, cfg, true, bar, deadline),
         _ => {
             let _ = std::fs::remove_dir_all(run);
-            train::train_with(run, cfg, false, bar)
+            train::train_until(run, cfg, false, bar, deadline)
         }
     }
 }

@@ -167,16 +167,42 @@ pub fn train_with(
     resume: bool,
     bar: ProgressBar,
 ) -> Result<RunState> {
+    train_until(dir, cfg, resume, bar, None)
+}
+
+/// [`train_with`], stopping after the iteration that ends past
+/// `deadline` (checkpointed there, so that it resumes): the returned
+/// state's iterations are then fewer than the config's.
+pub fn train_until(
+    dir: &Path,
+    cfg: TrainConfig,
+    resume: bool,
+    bar: ProgressBar,
+    deadline: Option<Instant>,
+) -> Result<RunState> {
     let kind = if resume {
         saved_config(&RunPaths::new(dir))?.model
     } else {
         cfg.model
     };
+    let run = Run {
+        resume,
+        bar,
+        deadline,
+    };
     match kind {
-        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, resume, bar),
-        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, resume, bar),
-        ModelKind::Bilinear => train_model::<Bilinear>(dir, cfg, resume, bar),
+        ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, run),
+        ModelKind::Mlp => train_model::<Regressor>(dir, cfg, run),
+        ModelKind::Bilinear => train_model::<Bilinear>(dir, cfg, run),
     }
+}
+
+/// How a training runs: resumed or fresh, its progress bar, and when it
+/// must stop by.
+struct Run {
+    resume: bool,
+    bar: ProgressBar,
+    deadline: Option<Instant>,
 }
 
 /// The config saved in a run directory.
@@ -193,8 +219,11 @@ type Start<M> = (TrainConfig, M, ModuleOptimizer, RunState);
 fn train_model<M: Trainable>(
     dir: &Path,
     cfg: TrainConfig,
-    resume: bool,
-    bar: ProgressBar,
+    Run {
+        resume,
+        bar,
+        deadline,
+    }: Run,
 ) -> Result<RunState> {
     let paths = RunPaths::new(dir);
     let device = device();
@@ -271,8 +300,13 @@ fn train_model<M: Trainable>(
         ));
         bar.inc(1);
         snapshot(dir, &model, &cfg, state.iteration)?;
-        if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations {
+        let late = deadline.is_some_and(|d| Instant::now() >= d);
+        if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations || late
+        {
             checkpoint(&paths, &model, &optim, &state, &mut log)?;
+        }
+        if late {
+            break;
         }
     }
     bar.finish();
@@ -512,6 +546,44 @@ mod tests {
         let q1: Vec<f32> = q.chunks(2).map(|c| c[0]).collect();
         assert!(q1.iter().all(|v| v.abs() <= 1.0 + 1e-6), "{q1:?}");
         assert!(q1.iter().any(|v| v.abs() < 0.99), "{q1:?}");
+    }
+
+    /// A training whose deadline has passed stops after its first
+    /// iteration, checkpointed there; resumed without one, it trains the
+    /// rest of its config's iterations, its log one line an iteration.
+    #[test]
+    fn a_training_past_its_deadline_stops_checkpointed_and_resumes() {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = TrainConfig {
+            rollouts_per_length: 6,
+            batch: 8,
+            iterations: 4,
+            checkpoint_every: 100,
+            ..TrainConfig::for_model(ModelKind::Bilinear)
+        };
+        let hidden = ProgressBar::hidden;
+        let stopped = train_until(
+            dir.path(),
+            cfg.clone(),
+            false,
+            hidden(),
+            Some(Instant::now()),
+        )
+        .unwrap();
+        assert_eq!(stopped.iteration, 1);
+        let paths = RunPaths::new(dir.path());
+        let saved: RunState =
+            serde_json::from_str(&std::fs::read_to_string(&paths.state).unwrap()).unwrap();
+        assert_eq!(saved.iteration, 1);
+        let done = train_with(dir.path(), cfg, true, hidden()).unwrap();
+        assert_eq!(done.iteration, 4);
+        let log = std::fs::read_to_string(&paths.log).unwrap();
+        let iterations: Vec<&str> = log
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').next())
+            .collect();
+        assert_eq!(iterations, ["1", "2", "3", "4"], "{log}");
     }
 
     #[test]

@@ -177,9 +177,10 @@ pub struct Given<'a> {
     pub unit: Option<[f64; 2]>,
 }
 
-/// Keeps at `blob` the model of the run `dir` (whose last, of
-/// `iterations`, is exported there) that forecasts the `replicas` best
-/// where the last forecasts them worse than the `given` blob; each
+/// Keeps at `blob` the model of the run `dir` (whose last, after
+/// `iterations`, is exported there; its `snapshots` kept after those
+/// before) that forecasts the `replicas` best where the last forecasts
+/// them worse than the `given` blob; each
 /// snapshot, in order while `room()` says another fits in the time, is
 /// exported with its noise chosen on `tuning` and the `replicas`. Where
 /// none forecasts them as well and the given carries an effect named,
@@ -191,7 +192,7 @@ pub struct Given<'a> {
 pub fn keep(
     dir: &Path,
     blob: &Path,
-    iterations: usize,
+    (iterations, snapshots): (usize, &[usize]),
     given: &Given<'_>,
     (tuning, replicas): (&LabCheckConfig, &LabCheckConfig),
     room: &dyn Fn() -> bool,
@@ -205,7 +206,7 @@ pub fn keep(
     let mut weighed = vec![last];
     let mut exported: Vec<(usize, PathBuf, Vec<crate::export::NoiseCandidate>)> = Vec::new();
     if last.replicas > given_error {
-        for at in self::iterations(iterations) {
+        for &at in snapshots.iter().filter(|&&at| at < iterations) {
             if !room() {
                 break;
             }
