@@ -164,14 +164,14 @@ fn train_and_export(
 }
 
 /// Trains the model of `cfg` into the run directory `run`, showing
-/// progress on `bar`, stopping past the `deadline` (`train::train_until`):
+/// progress on `bar`, stopping where `stop` says (`train::train_until`):
 /// a finished training with the same config is reused, a killed or
 /// stopped one resumed, any other replaced.
 pub(super) fn train_or_reuse(
     run: &Path,
     cfg: TrainConfig,
     bar: ProgressBar,
-    deadline: Option<std::time::Instant>,
+    stop: Option<train::Stop<'_>>,
 ) -> Result<RunState> {
     let paths = RunPaths::new(run);
     let done: Option<RunState> = std::fs::read_to_string(&paths.state)
@@ -184,10 +184,10 @@ pub(super) fn train_or_reuse(
         .is_some_and(|s| serde_json::to_string_pretty(&cfg).is_ok_and(|c| c == s));
     match done {
         Some(s) if same && s.iteration >= cfg.iterations => Ok(s),
-        Some(_) if same => train::train_until(run, cfg, true, bar, deadline),
+        Some(_) if same => train::train_until(run, cfg, true, bar, stop),
         _ => {
             let _ = std::fs::remove_dir_all(run);
-            train::train_until(run, cfg, false, bar, deadline)
+            train::train_until(run, cfg, false, bar, stop)
         }
     }
 }

@@ -170,26 +170,22 @@ pub fn train_with(
     train_until(dir, cfg, resume, bar, None)
 }
 
-/// [`train_with`], stopping after the iteration that ends past
-/// `deadline` (checkpointed there, so that it resumes): the returned
+/// [`train_with`], stopping after the first iteration whose state `stop`
+/// says to stop at (checkpointed there, so that it resumes): the returned
 /// state's iterations are then fewer than the config's.
 pub fn train_until(
     dir: &Path,
     cfg: TrainConfig,
     resume: bool,
     bar: ProgressBar,
-    deadline: Option<Instant>,
+    stop: Option<Stop<'_>>,
 ) -> Result<RunState> {
     let kind = if resume {
         saved_config(&RunPaths::new(dir))?.model
     } else {
         cfg.model
     };
-    let run = Run {
-        resume,
-        bar,
-        deadline,
-    };
+    let run = Run { resume, bar, stop };
     match kind {
         ModelKind::Klm | ModelKind::Cbm => train_model::<Klm>(dir, cfg, run),
         ModelKind::Mlp => train_model::<Regressor>(dir, cfg, run),
@@ -197,12 +193,16 @@ pub fn train_until(
     }
 }
 
-/// How a training runs: resumed or fresh, its progress bar, and when it
-/// must stop by.
-struct Run {
+/// Whether a training stops after the iteration whose state it is given
+/// ([`train_until`]).
+pub type Stop<'a> = &'a dyn Fn(&RunState) -> bool;
+
+/// How a training runs: resumed or fresh, its progress bar, and where it
+/// stops before its config's end.
+struct Run<'a> {
     resume: bool,
     bar: ProgressBar,
-    deadline: Option<Instant>,
+    stop: Option<Stop<'a>>,
 }
 
 /// The config saved in a run directory.
@@ -219,11 +219,7 @@ type Start<M> = (TrainConfig, M, ModuleOptimizer, RunState);
 fn train_model<M: Trainable>(
     dir: &Path,
     cfg: TrainConfig,
-    Run {
-        resume,
-        bar,
-        deadline,
-    }: Run,
+    Run { resume, bar, stop }: Run<'_>,
 ) -> Result<RunState> {
     let paths = RunPaths::new(dir);
     let device = device();
@@ -300,7 +296,7 @@ fn train_model<M: Trainable>(
         ));
         bar.inc(1);
         snapshot(dir, &model, &cfg, state.iteration)?;
-        let late = deadline.is_some_and(|d| Instant::now() >= d);
+        let late = state.iteration < cfg.iterations && stop.is_some_and(|f| f(&state));
         if state.iteration % cfg.checkpoint_every == 0 || state.iteration == cfg.iterations || late
         {
             checkpoint(&paths, &model, &optim, &state, &mut log)?;
@@ -548,11 +544,11 @@ mod tests {
         assert!(q1.iter().any(|v| v.abs() < 0.99), "{q1:?}");
     }
 
-    /// A training whose deadline has passed stops after its first
-    /// iteration, checkpointed there; resumed without one, it trains the
-    /// rest of its config's iterations, its log one line an iteration.
+    /// A training told to stop after its second iteration stops there,
+    /// checkpointed; resumed without a stop, it trains the rest of its
+    /// config's iterations, its log one line an iteration.
     #[test]
-    fn a_training_past_its_deadline_stops_checkpointed_and_resumes() {
+    fn a_training_told_to_stop_stops_checkpointed_and_resumes() {
         let dir = tempfile::tempdir().unwrap();
         let cfg = TrainConfig {
             rollouts_per_length: 6,
@@ -562,19 +558,13 @@ mod tests {
             ..TrainConfig::for_model(ModelKind::Bilinear)
         };
         let hidden = ProgressBar::hidden;
-        let stopped = train_until(
-            dir.path(),
-            cfg.clone(),
-            false,
-            hidden(),
-            Some(Instant::now()),
-        )
-        .unwrap();
-        assert_eq!(stopped.iteration, 1);
+        let at_two = |s: &RunState| s.iteration >= 2;
+        let stopped = train_until(dir.path(), cfg.clone(), false, hidden(), Some(&at_two)).unwrap();
+        assert_eq!(stopped.iteration, 2);
         let paths = RunPaths::new(dir.path());
         let saved: RunState =
             serde_json::from_str(&std::fs::read_to_string(&paths.state).unwrap()).unwrap();
-        assert_eq!(saved.iteration, 1);
+        assert_eq!(saved.iteration, 2);
         let done = train_with(dir.path(), cfg, true, hidden()).unwrap();
         assert_eq!(done.iteration, 4);
         let log = std::fs::read_to_string(&paths.log).unwrap();
