@@ -312,14 +312,16 @@ pub fn close_loop_rig(
         plan.cfg.snapshots = snapshot::iterations(plan.cfg.iterations);
     }
     let estimated = estimate(plan.cfg.iterations);
+    let ends = estimated + start.elapsed().as_secs_f64();
+    let rest_s = estimate(0);
     let carries_effect = carries_effect(&given_cfg, &parts);
     let copy_s = COPY_SECONDS * pace.slowdown();
     let copies = if carries_effect { COPIES } else { 0.0 };
     let more = if plan.cfg.warm_start.is_some() {
         weighing_seconds(
-            plan.cfg.snapshots.len() as f64 * estimate(0),
+            plan.cfg.snapshots.len() as f64 * rest_s,
             copies * copy_s,
-            estimated + start.elapsed().as_secs_f64(),
+            ends,
         )
     } else {
         0.0
@@ -342,7 +344,7 @@ pub fn close_loop_rig(
         pace.seconds_per_iteration,
         weighing_said(more, carries_effect)
     ));
-    let estimated = estimated + start.elapsed().as_secs_f64();
+    let estimated = ends;
     // 3. Train, export, calibrate.
     let run = out.join("run");
     let bar = if opts.quiet {
@@ -351,7 +353,6 @@ pub fn close_loop_rig(
         ProgressBar::new(0)
     };
     let budgeted = plan.cfg.warm_start.is_some() && opts.iterations_least < opts.iterations;
-    let rest_s = estimate(0);
     let stop = |s: &crate::learn::run::RunState| {
         let slowed = match Pace::of_training(s.iteration, s.train_seconds) {
             Some(ran) if s.iteration >= PACE_AFTER => {
@@ -382,7 +383,7 @@ pub fn close_loop_rig(
     let (_, noise) = noise::export(&run, &blob, &tuning, &replicas)?;
     let (kept, noise) = if plan.cfg.warm_start.is_some() {
         say("weighing the fine-tuning's last model against the given blob on the replicas");
-        let room = || snapshot_room(start.elapsed().as_secs_f64(), estimate(0), (copies, copy_s));
+        let room = || snapshot_room(start.elapsed().as_secs_f64(), rest_s, (copies, copy_s));
         let copy_room = || start.elapsed().as_secs_f64() + copy_s <= LIMIT_SECONDS;
         let given_blob = snapshot::Given {
             model: &given,
