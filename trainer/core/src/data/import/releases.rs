@@ -242,6 +242,16 @@ fn turning_points(theta: &[f64]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data::import::Recording;
+    use crate::data::lab::{Artefacts, Case, LabSpec, Stamps};
+    use crate::physics::{Effect, EffectKind, Rig};
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// `spec` recorded at the noise's `seed`.
+    fn drawn(spec: &LabSpec, seed: u64) -> Recording {
+        spec.record(&mut ChaCha8Rng::seed_from_u64(seed))
+    }
 
     /// Rest 5 s, a hand lifting the bob for 2 s, a release at 1.2 rad that
     /// decays to rest over 30 s, rest, and another release: two releases,
@@ -281,10 +291,6 @@ mod tests {
     /// the second a stub of 6 s that reads no `Q`).
     #[test]
     fn a_swing_dying_into_the_noise_is_one_release() {
-        use crate::data::lab::{Artefacts, Case, LabSpec, Stamps};
-        use crate::physics::{Effect, EffectKind, Rig};
-        use rand::SeedableRng;
-        use rand_chacha::ChaCha8Rng;
         let spec = LabSpec {
             case: Case::Drag,
             length: 0.381,
@@ -305,7 +311,7 @@ mod tests {
             artefacts: Artefacts::NONE,
         };
         for seed in 1..=8 {
-            let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(seed));
+            let rec = drawn(&spec, seed);
             let got = releases(&rec.t, &rec.theta);
             assert!(
                 got.as_ref().is_none_or(|r| r.len() == 1),
@@ -324,10 +330,6 @@ mod tests {
     /// recording: a release spanning 0.0175 rad).
     #[test]
     fn a_period_misread_through_false_turns_is_read_again() {
-        use crate::data::lab::{Artefacts, Case, LabSpec, Stamps};
-        use crate::physics::{Effect, EffectKind, Rig};
-        use rand::SeedableRng;
-        use rand_chacha::ChaCha8Rng;
         let spec = LabSpec {
             case: Case::Viscous,
             length: 0.978,
@@ -348,7 +350,7 @@ mod tests {
             artefacts: Artefacts::NONE,
         };
         for seed in 1..=4 {
-            let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(seed));
+            let rec = drawn(&spec, seed);
             let turns = turning_points(&rec.theta);
             let (period, _) = period_and_turns(&turns, &rec.t, &rec.theta).unwrap();
             // 2 pi sqrt(L / g), 1.98 s at small swings: within 5%.
@@ -376,10 +378,6 @@ mod tests {
     /// its swing still 0.18 rad).
     #[test]
     fn false_turns_in_the_noise_do_not_end_a_release() {
-        use crate::data::lab::{Artefacts, Case, LabSpec, Stamps};
-        use crate::physics::{Effect, EffectKind, Rig};
-        use rand::SeedableRng;
-        use rand_chacha::ChaCha8Rng;
         let spec = LabSpec {
             case: Case::ViscousCoulomb,
             length: 0.5964,
@@ -400,7 +398,7 @@ mod tests {
         };
         let mut ends = Vec::new();
         for seed in 1..=8 {
-            let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(seed));
+            let rec = drawn(&spec, seed);
             // `None`: kept whole, to its last sample.
             let (n, end) = match releases(&rec.t, &rec.theta) {
                 Some(got) => (got.len(), got.first().map_or(0.0, |r| rec.t[r.end - 1])),
