@@ -14,8 +14,9 @@
 //!    half swings beside it hold the true extremes).
 //! 3. Each half swing (between two turning points) is free where it lasts
 //!    between [`SHORTEST`] and 0.8 of the swing's period, spans at least
-//!    [`FLOOR`] of the largest half swing, and is at most [`GROWTH`] times
-//!    the one before it.
+//!    [`FLOOR`] of the largest half swing and [`NOISE_SPANS`] times the
+//!    recording's noise ([`noise()`]), and is at most [`GROWTH`] times the
+//!    one before it.
 //! 4. A release is a run of at least [`MIN_HALVES`] free half swings, from
 //!    the turning point it is let go at to the last one.
 //! 5. A run that begins no wider than [`CONTINUES`] times the end of the
@@ -38,6 +39,14 @@ pub const SHORTEST: f64 = 0.3;
 pub const HYSTERESIS: f64 = 0.02;
 /// The least half swing of a release, as a fraction of the largest.
 pub const FLOOR: f64 = 0.03;
+/// The least half swing of a release, in standard deviations of the
+/// recording's noise. The noise alone spans about 6 of them over a half
+/// swing (60 Hz; 7 at 1 kHz); below 16 the last third's envelope reads
+/// the noise as much as the swing. On envelope seeds 481-520 (360
+/// recordings), at 0 (none), 10, 16 and 24: `Q` at the end within 25% of
+/// that envelope on 74%, 76%, 82% and 85%, the lengths trusted 317, 317,
+/// 318 and 311.
+pub const NOISE_SPANS: f64 = 16.0;
 /// The most a free half swing grows over the one before (noise).
 pub const GROWTH: f64 = 1.15;
 /// The fewest half swings a release holds.
@@ -64,6 +73,7 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
     }
     let halves = halves_of(&turns, t, theta);
     let largest = halves.iter().map(|h| h.1).fold(0.0, f64::max);
+    let least = (FLOOR * largest).max(NOISE_SPANS * noise(t, theta));
     let fits = |d: f64| (SHORTEST * period..=0.8 * period).contains(&d);
     let free: Vec<bool> = halves
         .iter()
@@ -71,7 +81,7 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
         .map(|(k, &(d, a))| {
             // Grown over a half swing before it (a hand's lift lasts longer).
             let grows = k > 0 && fits(halves[k - 1].0) && a > GROWTH * halves[k - 1].1;
-            fits(d) && a >= FLOOR * largest && !grows
+            fits(d) && a >= least && !grows
         })
         .collect();
     // Runs of free half swings, as half-swing indices `f..k`.
@@ -108,6 +118,32 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
         || t[t.len() - 1] - t[turns[turns.len() - 1]] > MIN_OTHER * period;
     (!runs.is_empty() && (slow_outside || still_ends))
         .then(|| runs.iter().map(|&(f, e)| turns[f]..turns[e] + 1).collect())
+}
+
+/// The standard deviation of the recording's noise: the median absolute
+/// departure of each angle from the line through its neighbours, scaled
+/// to a deviation (1.4826, and the departure's own deviation, `sqrt(1 +
+/// w^2 + (1 - w)^2)` of the noise's, `w` the sample's place between its
+/// neighbours). The swing's own curvature adds `a (w dt)^2 / 2` at most,
+/// which reads a coarse source's noise high.
+pub fn noise(t: &[f64], theta: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t
+        .windows(3)
+        .zip(theta.windows(3))
+        .filter_map(|(t, th)| {
+            let span = t[2] - t[0];
+            let w = (t[1] - t[0]) / span;
+            let line = th[0] + w * (th[2] - th[0]);
+            let scale = (1.0 + w * w + (1.0 - w) * (1.0 - w)).sqrt();
+            (span > 0.0).then(|| (th[1] - line).abs() / scale)
+        })
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *m
 }
 
 /// Each half swing between consecutive `turns`: its duration and its span
@@ -410,5 +446,78 @@ mod tests {
             ends.iter().all(|&(_, n, end)| n == 1 && end > 25.0),
             "{ends:?}"
         );
+    }
+
+    /// The noise read from a swing of 0.3 rad at 0.5 Hz, 60 Hz with
+    /// jittered stamps and 0.004 rad of Gaussian noise (60 s, seed 3):
+    /// within 10% (the median's spread over 3,600 samples is about 2%, the
+    /// swing's curvature adds under 1%).
+    #[test]
+    fn the_noise_is_read_from_a_swing_with_uneven_stamps() {
+        use rand::Rng;
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // Box-Muller.
+        let mut gauss = |rng: &mut ChaCha8Rng| {
+            let (u1, u2): (f64, f64) = (1.0 - rng.random::<f64>(), rng.random());
+            0.004 * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        };
+        let t: Vec<f64> = (0..3600)
+            .map(|k| (k as f64 + rng.random_range(-0.3..0.3)) / 60.0)
+            .collect();
+        let theta: Vec<f64> = t
+            .iter()
+            .map(|&s| 0.3 * (std::f64::consts::PI * s).cos() + gauss(&mut rng))
+            .collect();
+        let got = noise(&t, &theta);
+        assert!((got / 0.004 - 1.0).abs() < 0.1, "{got}");
+    }
+
+    /// Envelope seed 483's viscous recording drawn anew (0.642 m, let go
+    /// at 0.42 rad, viscous 0.097 1/s with drag and Coulomb friction, 60
+    /// Hz with 0.0099 rad of noise, 138 s, most of it at rest): its release
+    /// ends while the swing still stands out of the noise, its last swing
+    /// at least 5 noise deviations wide (before the noise was read, the
+    /// first draw's release ran on to 53.9 s, its last swing 0.030 rad;
+    /// the envelope seed's own draw, to 60.6 s, where the envelope of its
+    /// last third read `Q` 168 and the truth is 20 to 32).
+    #[test]
+    fn a_release_ends_where_its_swing_sinks_into_the_noise() {
+        let spec = LabSpec {
+            case: Case::ViscousOffset,
+            length: 0.642,
+            rig: Rig::Simple,
+            theta0: 0.415,
+            duration: 138.2,
+            rate: 60.0,
+            stamps: Stamps::Even,
+            noise: 0.0099,
+            quantum: 0.1f64.to_radians(),
+            effects: vec![
+                Effect::new(EffectKind::Viscous, 0.0972),
+                Effect::new(EffectKind::Drag, 0.0219),
+                Effect::new(EffectKind::Coulomb, 0.003),
+            ],
+            offset: 0.013,
+            forcing: None,
+            artefacts: Artefacts::NONE,
+        };
+        for seed in 1..=4 {
+            let rec = drawn(&spec, seed);
+            let got = releases(&rec.t, &rec.theta).unwrap();
+            let last = got.last().unwrap();
+            // The amplitude over the release's last swing period (1.6 s).
+            let end = rec.t[last.end - 1];
+            let tail: Vec<f64> = (last.clone())
+                .filter(|&k| rec.t[k] > end - 1.6)
+                .map(|k| rec.theta[k])
+                .collect();
+            let amplitude = (tail.iter().copied().fold(f64::MIN, f64::max)
+                - tail.iter().copied().fold(f64::MAX, f64::min))
+                / 2.0;
+            assert!(
+                amplitude > 5.0 * 0.0099 && end < 45.0,
+                "seed {seed}: ends {end} s at {amplitude} rad"
+            );
+        }
     }
 }
