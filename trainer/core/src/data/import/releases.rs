@@ -124,7 +124,7 @@ pub fn releases(t: &[f64], theta: &[f64]) -> Option<Vec<Range<usize>>> {
 /// departure of each angle from the line through its neighbours, scaled
 /// to a deviation (1.4826, and the departure's own deviation, `sqrt(1 +
 /// w^2 + (1 - w)^2)` of the noise's, `w` the sample's place between its
-/// neighbours). The swing's own curvature adds `a (w dt)^2 / 2` at most,
+/// neighbours). The swing's own curvature adds `a (omega dt)^2 / 2` at most,
 /// which reads a coarse source's noise high.
 pub fn noise(t: &[f64], theta: &[f64]) -> f64 {
     let mut d: Vec<f64> = t
@@ -457,7 +457,7 @@ mod tests {
         use rand::Rng;
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         // Box-Muller.
-        let mut gauss = |rng: &mut ChaCha8Rng| {
+        let gauss = |rng: &mut ChaCha8Rng| {
             let (u1, u2): (f64, f64) = (1.0 - rng.random::<f64>(), rng.random());
             0.004 * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
         };
