@@ -23,7 +23,8 @@
 //! samples, whose noise is the tracker's over one step). The angle is smoothed by the same window's quadratic.
 //! Then both are resampled to the model's `dt` by linear interpolation, after
 //! an optional trim. Uneven time stamps are differentiated at their times,
-//! over a window of the same time ([`differentiate_uneven`]). A gap in the
+//! over a window of time that holds the grid's samples, jittered frames
+//! included ([`differentiate_uneven`], [`uneven_half`]). A gap in the
 //! time stamps (more than 5 median steps and more than `dt`, with more than
 //! one count moved across it) is left out, not interpolated across
 //! ([`to_rollout`]). Before the rate is derived, single-frame tracker
@@ -60,7 +61,9 @@ mod tool_exports;
 
 pub use archive::read_tables;
 pub use checks::{MIN_SPAN_DEGREES, MIN_SPAN_RADIANS, check_recording};
-pub use differentiate::{differentiate, differentiate_uneven, rough_period};
+pub use differentiate::{
+    JITTER_ROOM, differentiate, differentiate_uneven, rough_period, uneven_half,
+};
 pub use glitch::glitches;
 pub use position::{PivotFrom, Pivoted, about_pivot};
 pub use rate_only::{Integrated, integrate};
