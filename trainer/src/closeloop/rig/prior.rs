@@ -224,10 +224,13 @@ mod tests {
     /// with jittered stamps, 0.0073 rad of tracking noise, 0.1 degree
     /// steps; viscous 0.0585 1/s, drag 0.0725 1/rad): its last third
     /// swings at 0.04 rad and less. Started at its unit's length, the
-    /// copy forecasts it from each window at under half the given blob's
-    /// error, whose prior lies at 0.19 m: 0.23 against 0.89 at this draw's
-    /// seed (83); at seeds 84 to 86, 0.20 against 0.70, 0.20 against 0.64,
-    /// 0.13 against 0.25.
+    /// copy forecasts it from each window better than the given blob,
+    /// whose prior lies at 0.19 m: at seeds 83 to 86, 0.076 against
+    /// 0.098, 0.091 against 0.095, 0.085 against 0.104 and 0.082 against
+    /// 0.096 (0.78 to 0.96, 0.85 on the mean), so each is asserted below
+    /// 1 and the mean ratio below 0.9. (Before the import differentiated
+    /// jittered stamps over the grid's samples, the given blob's error was
+    /// 0.25 to 0.89, from a rate carrying 3.4 times the noise.)
     #[test]
     fn started_at_the_units_length_a_window_of_small_swings_is_forecast_better() {
         use rand::SeedableRng;
@@ -256,21 +259,27 @@ mod tests {
             forcing: None,
             artefacts: Artefacts::NONE,
         };
-        let rec = spec.record(&mut rand_chacha::ChaCha8Rng::seed_from_u64(83));
-        let opts = ImportOptions {
-            dt: 0.04,
-            ..ImportOptions::default()
-        };
-        let xs = import::to_rollout(&rec, 0, &opts).unwrap().xs;
-        let from = 2 * xs.len() / 3;
-        let [before, after] = [&given, &copy].map(|m| {
-            super::super::super::forecast::klm(m, &xs, from, 0.04)
-                .unwrap()
-                .median
-        });
-        assert!(
-            after < 0.5 * before,
-            "given {before}, on the unit's length {after}"
-        );
+        let mut ratios = vec![];
+        for seed in 83..87 {
+            let rec = spec.record(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
+            let opts = ImportOptions {
+                dt: 0.04,
+                ..ImportOptions::default()
+            };
+            let xs = import::to_rollout(&rec, 0, &opts).unwrap().xs;
+            let from = 2 * xs.len() / 3;
+            let [before, after] = [&given, &copy].map(|m| {
+                super::super::super::forecast::klm(m, &xs, from, 0.04)
+                    .unwrap()
+                    .median
+            });
+            assert!(
+                after < before,
+                "seed {seed}: given {before}, on the unit's length {after}"
+            );
+            ratios.push(after / before);
+        }
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        assert!(mean < 0.9, "{ratios:?}");
     }
 }
