@@ -259,13 +259,13 @@ mod tests {
             forcing: None,
             artefacts: Artefacts::NONE,
         };
+        let opts = ImportOptions {
+            dt: 0.04,
+            ..ImportOptions::default()
+        };
         let mut ratios = vec![];
         for seed in 83..87 {
             let rec = spec.record(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
-            let opts = ImportOptions {
-                dt: 0.04,
-                ..ImportOptions::default()
-            };
             let xs = import::to_rollout(&rec, 0, &opts).unwrap().xs;
             let from = 2 * xs.len() / 3;
             let [before, after] = [&given, &copy].map(|m| {

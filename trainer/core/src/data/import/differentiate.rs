@@ -20,7 +20,7 @@ pub(super) fn smooth_and_rate(
         .unwrap_or(0.01);
     if uniform(t) {
         let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-        savitzky_golay(theta, (smooth / h).round().max(1.0) as usize, |k| t[k])
+        savitzky_golay(theta, samples_either_side(smooth, h) as usize, |k| t[k])
     } else {
         differentiate_uneven(t, theta, uneven_half(smooth, step))
     }
@@ -45,7 +45,13 @@ pub const JITTER_ROOM: f64 = 0.6;
 /// viscous + drag rod: 4 times, its right length flagged as
 /// inconsistent).
 pub fn uneven_half(smooth: f64, step: f64) -> f64 {
-    ((smooth / step).round().max(1.0) + JITTER_ROOM) * step
+    (samples_either_side(smooth, step) + JITTER_ROOM) * step
+}
+
+/// Samples either side of each that a window of `smooth` s takes on
+/// stamps `step` apart: `smooth / step` rounded, at least 1.
+fn samples_either_side(smooth: f64, step: f64) -> f64 {
+    (smooth / step).round().max(1.0)
 }
 
 /// The smoothing differentiator (the `import` module docs) with half-width
