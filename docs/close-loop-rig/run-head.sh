@@ -7,13 +7,7 @@
 # (results-b201dea.md). From the repository root, after
 # `cargo build --release -p trainer`.
 
-K=./target/release/koopman
-S=../shared/data/measured
-E=$S/rotary-encoder
-run() { # name, then close-loop's arguments
-  local name=$1; shift
-  { time $K close-loop --weights weights/rig.kkf --quiet --out runs/cl-rig-$name "$@" > runs/cl-rig-$name.md ; } 2> runs/cl-rig-$name.time
-}
+. docs/close-loop-rig/common.sh
 for s in 61 67 83 97; do $K generate --lab $s --offset 0.03 --seconds 40,90 --out runs/lab$s; done
 run q2 $S/video-tracked/q2_data.csv --time-column 1 --angle-column 2
 run encoder --rig rod $E/pendulum_free_swing_data_01.txt $E/pendulum_free_swing_data_02.txt $E/pendulum_free_swing_data_03.txt
