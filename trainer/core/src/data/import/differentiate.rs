@@ -6,8 +6,7 @@
 /// window of `smooth` seconds either side or, unset, a twentieth of the
 /// part's own swing's period ([`rough_period`]; 0.01 s without one), by
 /// [`differentiate`] on uniform stamps and by [`differentiate_uneven`] on
-/// uneven ones, over the window of samples the grid's would hold
-/// ([`uneven_half`]).
+/// uneven ones, over the window of samples the grid's would hold.
 pub(super) fn smooth_and_rate(
     t: &[f64],
     theta: &[f64],
@@ -22,7 +21,7 @@ pub(super) fn smooth_and_rate(
         let h = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
         savitzky_golay(theta, samples_either_side(smooth, h) as usize, |k| t[k])
     } else {
-        differentiate_uneven(t, theta, uneven_half(smooth, step))
+        differentiate_uneven(t, theta, samples_either_side(smooth, step) as usize, step)
     }
 }
 
@@ -33,19 +32,25 @@ pub(super) fn smooth_and_rate(
 pub const JITTER_ROOM: f64 = 0.6;
 
 /// The half-window, s, of [`differentiate_uneven`] on stamps `step` apart
-/// (their median) for a window of `smooth` s: the `m` samples either side
-/// that [`differentiate`] takes on a grid (`smooth / step` rounded, at
-/// least 1) and [`JITTER_ROOM`] steps more. A window of `smooth` alone
-/// holds fewer where the stamps are jittered: on a 25 Hz video whose
-/// frames come up to 30% of a step early or late, 0.076 s often holds
-/// `i - 1` to `i + 1` only, where the grid's holds `i - 2` to `i + 2`,
-/// and the quadratic through three samples is their interpolation. Its
-/// rate then carries 3.4 times the noise of the same swing stamped
-/// evenly, and the filter's mean innovation reads it (lab seed 83's
-/// viscous + drag rod: 4 times, its right length flagged as
-/// inconsistent).
-pub fn uneven_half(smooth: f64, step: f64) -> f64 {
-    (samples_either_side(smooth, step) + JITTER_ROOM) * step
+/// (their median) for the grid's `m` samples either side: `m` steps and
+/// [`JITTER_ROOM`] more. A window of `m` steps alone holds fewer where
+/// the stamps are jittered: on a 25 Hz video whose frames come up to 30%
+/// of a step early or late, 0.076 s often holds `i - 1` to `i + 1` only,
+/// where the grid's holds `i - 2` to `i + 2`, and the quadratic through
+/// three samples is their interpolation. Its rate then carries 3.4 times
+/// the noise of the same swing stamped evenly, and the filter's mean
+/// innovation reads it (lab seed 83's viscous + drag rod: 4 times, its
+/// right length flagged as inconsistent).
+pub fn uneven_half(m: usize, step: f64) -> f64 {
+    (m as f64 + JITTER_ROOM) * step
+}
+
+/// The span, s, of [`differentiate_uneven`]'s window at either end: the
+/// grid's `2m + 1` samples, `2m` steps, and [`JITTER_ROOM`] more, so that
+/// even stamps written to a few decimals (a 30 Hz file's 0.033333), which
+/// take the uneven path, give the grid's rate at the ends too.
+fn end_span(m: usize, step: f64) -> f64 {
+    (2.0 * m as f64 + JITTER_ROOM) * step
 }
 
 /// Samples either side of each that a window of `smooth` s takes on
@@ -125,19 +130,20 @@ fn savitzky_golay(theta: &[f64], m: usize, time: impl Fn(usize) -> f64) -> (Vec<
 }
 
 /// The same differentiator on uneven time stamps `t` (an encoder logged
-/// on every count): over the samples within `half` seconds either side of
-/// each (within `half` of either end, a window of `2 half` that stops at
-/// the end, as on a grid), the least-squares quadratic through
-/// `(t_k - t_i, theta_k)`, its value at `t_i` the smoothed angle and its
-/// slope there the rate. The window is one of time, not of samples: an
-/// encoder logged per count writes a row every millisecond mid-swing and
-/// one every tens of milliseconds at the turning points, where a window
-/// of a fixed number of samples would span half a swing and cut its
-/// amplitude. On a uniform grid this is [`differentiate`] with
-/// `half = m h` (at the ends up to a sample the rounding of `2 half` may
-/// leave out).
-pub fn differentiate_uneven(t: &[f64], theta: &[f64], half: f64) -> (Vec<f64>, Vec<f64>) {
+/// on every count) `step` apart at the median, for the grid's `m`
+/// samples either side: over the samples within [`uneven_half`] seconds
+/// either side of each (within it of either end, over the first or last
+/// [`end_span`] seconds, as on a grid), the least-squares quadratic
+/// through `(t_k - t_i, theta_k)`, its value at `t_i` the smoothed angle
+/// and its slope there the rate. The window is one of time, not of
+/// samples: an encoder logged per count writes a row every millisecond
+/// mid-swing and one every tens of milliseconds at the turning points,
+/// where a window of a fixed number of samples would span half a swing
+/// and cut its amplitude. On a uniform grid of step `step` this is
+/// [`differentiate`] with `m`, the ends included.
+pub fn differentiate_uneven(t: &[f64], theta: &[f64], m: usize, step: f64) -> (Vec<f64>, Vec<f64>) {
     let n = theta.len().min(t.len());
+    let (half, span) = (uneven_half(m, step), end_span(m, step));
     let mut smooth = Vec::with_capacity(n);
     let mut rate = Vec::with_capacity(n);
     // The window's edges move forward with i.
@@ -148,9 +154,9 @@ pub fn differentiate_uneven(t: &[f64], theta: &[f64], half: f64) -> (Vec<f64>, V
             // window of time that stops at the end (at least three
             // samples), read at the sample.
             let (lo_t, hi_t) = if t[i] - t[0] < half {
-                (t[0], t[0] + 2.0 * half)
+                (t[0], t[0] + span)
             } else {
-                (t[n - 1] - 2.0 * half, t[n - 1])
+                (t[n - 1] - span, t[n - 1])
             };
             let a = t.partition_point(|&v| v < lo_t).min(n - 3);
             let b = t
@@ -357,7 +363,7 @@ mod tests {
             .collect();
         let truth = |x: f64| 0.5 * (5.0 * x).cos();
         let (_, d) = differentiate(&th, h, 10);
-        let (_, e) = differentiate_uneven(&t, &th, 10.0 * h);
+        let (_, e) = differentiate_uneven(&t, &th, 10, h);
         for k in (0..12).chain(388..400) {
             assert!(
                 (d[k] - truth(t[k])).abs() < 0.05,
@@ -427,7 +433,7 @@ mod tests {
             .map(|k| 0.001 * (k as f64 + 0.4 * ((k * 7919 % 13) as f64 / 13.0 - 0.5)))
             .collect();
         let th: Vec<f64> = t.iter().map(|&x| (6.0 * x).sin()).collect();
-        let (s, d) = differentiate_uneven(&t, &th, 0.010);
+        let (s, d) = differentiate_uneven(&t, &th, 10, 0.001);
         for k in (15..285).step_by(17) {
             assert!(
                 (d[k] - 6.0 * (6.0 * t[k]).cos()).abs() < 5e-3,
@@ -436,13 +442,32 @@ mod tests {
             );
             assert!((s[k] - (6.0 * t[k]).sin()).abs() < 1e-5, "angle at {k}");
         }
-        // On a uniform grid it is the uniform differentiator.
-        let tu: Vec<f64> = (0..50).map(|k| k as f64 * 0.01).collect();
-        let thu: Vec<f64> = tu.iter().map(|&x| x * x).collect();
-        let (_, a) = differentiate(&thu, 0.01, 3);
-        let (_, b) = differentiate_uneven(&tu, &thu, 0.03);
-        for k in 3..47 {
-            assert!((a[k] - b[k]).abs() < 1e-9, "{k}: {} vs {}", a[k], b[k]);
+        // On a uniform grid it is the uniform differentiator, the ends
+        // included, and so are stamps rounded to six decimals (a 30 Hz
+        // file's 0.033333), which fail the grid's test: a cubic with
+        // noise, so that a window one sample wider or narrower shows.
+        // Tolerance: the rounding's 5e-7 s moves a sample by under 1e-6
+        // of the rate's scale, 1e-9 on exact stamps.
+        let tu: Vec<f64> = (0..50).map(|k| k as f64 / 30.0).collect();
+        let thu: Vec<f64> = tu
+            .iter()
+            .enumerate()
+            .map(|(k, &x)| x * x * x - x + 1e-3 * ((k * 7919 % 13) as f64 - 6.0))
+            .collect();
+        let t6: Vec<f64> = tu.iter().map(|&x| (x * 1e6).round() / 1e6).collect();
+        assert!(!uniform(&t6), "six decimals fail the grid's test");
+        let (sa, a) = differentiate(&thu, 1.0 / 30.0, 3);
+        for (stamps, tol) in [(&tu, 1e-9), (&t6, 1e-4)] {
+            let (sb, b) = differentiate_uneven(stamps, &thu, 3, 1.0 / 30.0);
+            for k in 0..50 {
+                assert!(
+                    (a[k] - b[k]).abs() < tol,
+                    "rate at {k}: {} vs {}",
+                    a[k],
+                    b[k]
+                );
+                assert!((sa[k] - sb[k]).abs() < tol, "angle at {k}");
+            }
         }
         // And import takes them without a panic.
         let rec = Recording {
