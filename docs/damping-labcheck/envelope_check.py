@@ -39,6 +39,11 @@ def _q_check():
 envelope_q = _q_check()['envelope_q']
 
 
+def equivalent_length(c):
+    """A lab recording's equivalent simple length, m (a uniform rod's: 2/3 of it)."""
+    return c['length'] * (2 / 3 if c['rig'] == 'rod' else 1)
+
+
 def q_of(effects, omega, a):
     rate = 0.0
     for kind, c in effects:
@@ -67,7 +72,7 @@ def main(lo, hi, gen):
                 env = envelope_q(out)
                 if not env or not 30 <= env[0] <= 1000:
                     continue
-                omega = math.sqrt(9.81 / c['length'] * (1.5 if c['rig'] == 'rod' else 1.0))
+                omega = math.sqrt(9.81 / equivalent_length(c))
                 rows.append((v.get('q_factor'), v.get('q_factor_std'), v.get('q_swing'), env,
                              lambda a, c=c, omega=omega: q_of(c['effects'], omega, a), c['case']))
     near = lambda x, y: x is not None and abs(x / y - 1) <= 0.25

@@ -33,7 +33,7 @@ def main(lo, hi):
                 est = subprocess.run([ENV.K, 'estimate', '--weights', os.path.join(ENV.ROOT, 'weights/rig.kkf'),
                                       out, '--g', '9.81', '--json'], capture_output=True, text=True, check=True)
                 v = [json.loads(l) for l in est.stdout.splitlines()][-1]
-                true = c['length'] * (2 / 3 if c['rig'] == 'rod' else 1)
+                true = ENV.equivalent_length(c)
                 err = v['params'][0] / true - 1
                 n += 1
                 trusted += v['trust'] == 'trusted'
