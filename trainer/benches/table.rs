@@ -45,7 +45,7 @@ fn bench(c: &mut Criterion) {
     let text = text();
     let mut g = group(c, "table");
     g.bench_function("parse", |b| {
-        b.iter(|| Table::parse(Path::new("bench.csv"), black_box(&text)).map(|t| t.rows.len()))
+        b.iter(|| Table::parse(Path::new("bench.csv"), black_box(&text)).map(|t| t.len()))
     });
     g.finish();
     let mut g = group(c, "table_peer");

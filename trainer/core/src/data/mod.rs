@@ -64,6 +64,11 @@ pub struct SourceMeta {
     /// or `position about the pivot` ([`import::AngleFrom::word`]).
     #[serde(default = "measured")]
     pub angle_from: String,
+    /// Rows whose time stamp was before a row's above them, put in time
+    /// order ([`import::in_time_order`]); 0 in a sidecar written before
+    /// it was counted.
+    #[serde(default)]
+    pub reordered: usize,
 }
 
 /// The angle of a source that does not say where it came from.

@@ -102,14 +102,19 @@ pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvErro
         ));
     }
     let mut out: Vec<Rollout> = Vec::new();
-    for row in &table.rows {
-        let n = row.line;
-        if row.fields.len() != 4 {
-            return Err(table.error(n, format!("expected 4 columns, found {}", row.fields.len())));
-        }
-        let id: u32 = row.fields[0]
-            .parse()
-            .map_err(|_| table.error(n, format!("rollout {:?} is not an id", row.fields[0])))?;
+    if let Some((row, n)) = table.ragged() {
+        return Err(table.error(
+            table.line(row),
+            format!("expected 4 columns, found {n}"),
+        ));
+    }
+    for row in 0..table.len() {
+        let n = table.line(row);
+        let id = table.value(row, 0, "rollout")?;
+        let id: u32 = id
+            .filter(|v| v.fract() == 0.0 && (0.0..=f64::from(u32::MAX)).contains(v))
+            .map(|v| v as u32)
+            .ok_or_else(|| table.error(n, format!("rollout {id:?} is not an id")))?;
         let v = [
             table.number(row, 1, "t")?,
             table.number(row, 2, "theta")?,
@@ -213,6 +218,7 @@ mod tests {
             largest_gap: 0.25,
             interpolated: true,
             glitches: 2,
+            reordered: 12,
             angle_from: "integrated from the rate".into(),
         }];
         let csv = write_imported(&ds, &sources, &dir, "imported").unwrap();

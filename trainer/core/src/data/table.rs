@@ -1,18 +1,41 @@
-//! Delimited text: a header of column names and rows of fields, each row
+//! Delimited text: a header of column names and rows of numbers, each row
 //! with its 1-based line in the file, so that every problem names the
 //! file and line ([`CsvError`]). A line is split at the separator, one
 //! with quotes by the `csv` crate's reader.
 //!
+//! The file is read in one pass, a line at a time ([`Table::from_reader`]):
+//! the lines before the first data row are held to find the header
+//! (at most [`HEAD_LINES_MAX`]), and each row after it is kept as its
+//! numbers, not its text, column by column (8 bytes a field and 4 for its
+//! line), so the memory a table takes grows with its rows' numbers alone.
+//! A line over [`LINE_BYTES_MAX`] is an error.
+//!
 //! The separator is a comma, a tab or a semicolon, whichever the header
-//! line has most of; with a tab or a semicolon a number may have a decimal
-//! comma (`0,25`). Blank lines are skipped; rows may have fewer or more
+//! line has most of. Blank lines are skipped; rows may have fewer or more
 //! fields than the header (the reader that asks for a field says which is
 //! missing). A byte-order mark at the start is ignored, CRLF and a
-//! carriage return alone read as LF, and a file that is not UTF-8 is read
-//! as Latin-1 (a `°` written by a Windows tool).
+//! carriage return alone read as LF, UTF-16 with its mark is read, and a
+//! line that is not UTF-8 is read as Latin-1 (a `°` written by a Windows
+//! tool). Every field is read as a number by one reader ([`number`]).
 
 use std::fmt;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
+
+/// Longest line read, bytes (16 MiB): a header of thousands of columns
+/// fits many times over; a file of one endless line (no table, or a
+/// binary) is refused before it fills memory.
+pub const LINE_BYTES_MAX: usize = 16 << 20;
+
+/// Most non-blank lines held before the first data row: a logger's
+/// messages or a tool's preamble run to tens of lines; a file with no
+/// data row in its first 10,000 is not a table of a recording.
+pub const HEAD_LINES_MAX: usize = 10_000;
+
+/// The bits of a field that is empty or absent: a NaN with a payload of
+/// its own, told apart from a `NaN` written in the file
+/// ([`Table::is_blank`]); both read as no value.
+const BLANK: u64 = 0x7FF8_0000_B1A4_0001;
 
 /// A problem with a file, naming it and the line (1-based).
 #[derive(Debug, Clone, PartialEq)]
@@ -48,14 +71,24 @@ impl fmt::Display for CsvError {
 
 impl std::error::Error for CsvError {}
 
-/// One data row: its line and its fields (trimmed).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Row {
-    /// 1-based line in the file.
-    pub line: usize,
-    /// The fields.
-    pub fields: Vec<String>,
+/// Items as an error lists them: the first [`LIST_MAX`] joined by `sep`,
+/// then how many more (an archive of 20,000 entries gives a line, not a
+/// megabyte).
+pub fn listed(items: &[String], sep: &str) -> String {
+    let mut text = items
+        .iter()
+        .take(LIST_MAX)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(sep);
+    if items.len() > LIST_MAX {
+        text.push_str(&format!("{sep}and {} more", items.len() - LIST_MAX));
+    }
+    text
 }
+
+/// Most items an error names ([`listed`]).
+pub const LIST_MAX: usize = 10;
 
 /// A file's header and rows.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,16 +103,25 @@ pub struct Table {
     pub header: Vec<String>,
     /// Whether the header is the file's own.
     pub named: bool,
-    /// The data rows after the header.
-    pub rows: Vec<Row>,
     /// The separator: `,`, tab, `;` or a space (runs of spaces).
     pub separator: u8,
+    /// Each column's values, a row each: NaN where the field is empty,
+    /// absent, `NaN` or text ([`Table::is_blank`], [`Table::first_text`]
+    /// tell which).
+    columns: Vec<Vec<f64>>,
+    /// Each row's 1-based line.
+    lines: Vec<u32>,
+    /// Each column's first field that is text where a number belongs:
+    /// its row and the text.
+    text: Vec<Option<(usize, String)>>,
+    /// The first row with another number of fields than the header: its
+    /// row and its number of fields.
+    ragged: Option<(usize, usize)>,
 }
 
 /// A line's separator: a tab where it has one, else a semicolon where it
 /// has one, else a comma where it has one or no space, else a space
-/// (columns aligned by runs of spaces; a decimal comma goes with a tab or
-/// a semicolon).
+/// (columns aligned by runs of spaces).
 pub fn separator(line: &str) -> u8 {
     if line.contains('\t') {
         b'\t'
@@ -98,10 +140,14 @@ pub fn separator(line: &str) -> u8 {
 fn fields(text_line: &str, sep: u8) -> Result<Option<Vec<String>>, csv::Error> {
     let trimmed = text_line.trim();
     if sep == b' ' {
-        // Columns aligned by runs of spaces.
-        return Ok(
-            (!trimmed.is_empty()).then(|| trimmed.split_whitespace().map(str::to_string).collect())
-        );
+        // Columns aligned by runs of (ASCII) spaces: a no-break or thin
+        // space groups a number's digits.
+        return Ok((!trimmed.is_empty()).then(|| {
+            trimmed
+                .split_ascii_whitespace()
+                .map(str::to_string)
+                .collect()
+        }));
     }
     let inner = trimmed
         .strip_prefix('[')
@@ -138,35 +184,77 @@ fn csv_fields(inner: &str, sep: u8) -> Result<Option<Vec<String>>, csv::Error> {
         .then(|| record.iter().map(str::to_string).collect()))
 }
 
-/// A field as a number: a decimal comma read where `sep` is not a comma;
-/// `NaN` (padding) reads as NaN.
-fn parse_number(field: &str, sep: u8) -> Option<f64> {
-    let one_comma = field.matches(',').count() == 1 && !field.contains('.');
-    if sep != b',' && one_comma {
-        field.replace(',', ".").parse().ok()
-    } else {
-        field.parse().ok()
+/// Whether `c` is a minus sign as locales write one: U+2212 (minus),
+/// U+2012 (figure dash), U+2013 (en dash), U+FE63 (small hyphen-minus),
+/// U+FF0D (full-width hyphen-minus).
+fn is_minus_like(c: char) -> bool {
+    matches!(
+        c,
+        '\u{2212}' | '\u{2012}' | '\u{2013}' | '\u{FE63}' | '\u{FF0D}'
+    )
+}
+
+/// Whether `c` groups a number's digits: a no-break space (U+00A0), a
+/// thin space (U+2009), a narrow no-break space (U+202F), an apostrophe
+/// (Swiss `1'234`).
+fn is_group_separator(c: char) -> bool {
+    matches!(c, '\u{A0}' | '\u{2009}' | '\u{202F}' | '\'')
+}
+
+/// A field as a number: the one number reader of every layout and of
+/// `--follow`.
+///
+/// Read as Rust reads a float after these forms are made plain: a minus
+/// sign as locales write it ([`is_minus_like`]) in the mantissa or the
+/// exponent (`6,442E−2`); digit groups set off by a no-break, thin or
+/// narrow space or an apostrophe (`1 234,5`); a decimal comma where a
+/// field has one comma and no point (`0,25`; a comma-separated file
+/// quotes such a field); where a field has both, the one written last is
+/// the decimal mark and the other groups digits (`1.234,5`, `1,234.5`).
+/// `+` before a number or its exponent, `e` or `E`, `NaN` (padding, read
+/// as NaN) and `inf` are taken as Rust takes them. `None` where the field
+/// is text.
+pub fn number(field: &str) -> Option<f64> {
+    let field = field.trim();
+    if let Ok(v) = field.parse::<f64>() {
+        return Some(v);
     }
+    let mut plain = String::with_capacity(field.len());
+    for c in field.chars() {
+        if is_minus_like(c) {
+            plain.push('-');
+        } else if !is_group_separator(c) {
+            plain.push(c);
+        }
+    }
+    let (commas, points) = (plain.matches(',').count(), plain.matches('.').count());
+    let plain = match (plain.rfind(','), plain.rfind('.')) {
+        (Some(_), None) if commas == 1 => plain.replacen(',', ".", 1),
+        (Some(c), Some(p)) if c > p && commas == 1 => plain.replace('.', "").replacen(',', ".", 1),
+        (Some(c), Some(p)) if p > c && points == 1 => plain.replace(',', ""),
+        _ => plain,
+    };
+    plain.parse().ok()
 }
 
 /// The finite numbers among `fields`, where each is a number, `NaN` or
 /// empty (`None` where one is text).
-fn numbers_in(fields: &[String], sep: u8) -> Option<usize> {
+fn numbers_in(fields: &[String]) -> Option<usize> {
     fields
         .iter()
-        .all(|f| f.is_empty() || parse_number(f, sep).is_some())
+        .all(|f| f.is_empty() || number(f).is_some())
         .then(|| {
             fields
                 .iter()
-                .filter(|f| parse_number(f, sep).is_some_and(f64::is_finite))
+                .filter(|f| number(f).is_some_and(f64::is_finite))
                 .count()
         })
 }
 
 /// Whether `fields` is a data row: two or more fields, each a number,
 /// `NaN` or empty, at least two of them finite numbers.
-pub(crate) fn is_data(fields: &[String], sep: u8) -> bool {
-    numbers_in(fields, sep).is_some_and(|n| n >= 2)
+pub(crate) fn is_data(fields: &[String]) -> bool {
+    numbers_in(fields).is_some_and(|n| n >= 2)
 }
 
 /// Whether a line, split at its own separator, is a data row
@@ -176,40 +264,44 @@ pub(crate) fn line_is_data(line: &str) -> bool {
     fields(line, sep)
         .ok()
         .flatten()
-        .is_some_and(|f| is_data(&f, sep))
+        .is_some_and(|f| is_data(&f))
 }
 
 /// Whether `fields` is a data row with values missing: each field a
 /// number, `NaN` or empty, at least one a finite number.
-fn is_partial_data(fields: &[String], sep: u8) -> bool {
-    numbers_in(fields, sep).is_some_and(|n| n >= 1)
+fn is_partial_data(fields: &[String]) -> bool {
+    numbers_in(fields).is_some_and(|n| n >= 1)
 }
 
 /// Bytes as text: UTF-16 with its mark, UTF-8, else Latin-1 (a Windows
 /// tool's `°`).
 pub fn decode(bytes: Vec<u8>) -> String {
-    // UTF-16 with its byte-order mark (Excel's "Unicode text").
-    let utf16 = |le: bool| {
-        let units: Vec<u16> = bytes
-            .get(2..)
-            .unwrap_or_default()
-            .chunks_exact(2)
-            .map(|c| {
-                let pair = [c[0], c[1]];
-                if le {
-                    u16::from_le_bytes(pair)
-                } else {
-                    u16::from_be_bytes(pair)
-                }
-            })
-            .collect();
-        String::from_utf16_lossy(&units)
-    };
     match bytes.get(..2) {
-        Some([0xFF, 0xFE]) => return utf16(true),
-        Some([0xFE, 0xFF]) => return utf16(false),
+        Some([0xFF, 0xFE]) => return utf16(bytes.get(2..).unwrap_or_default(), true),
+        Some([0xFE, 0xFF]) => return utf16(bytes.get(2..).unwrap_or_default(), false),
         _ => {}
     }
+    latin1_unless_utf8(bytes)
+}
+
+/// UTF-16 code units (`le`: little-endian) as text, an unpaired half
+/// replaced.
+fn utf16(bytes: &[u8], le: bool) -> String {
+    let units = bytes.chunks_exact(2).map(|c| {
+        let pair = [c[0], c[1]];
+        if le {
+            u16::from_le_bytes(pair)
+        } else {
+            u16::from_be_bytes(pair)
+        }
+    });
+    char::decode_utf16(units)
+        .map(|c| c.unwrap_or(char::REPLACEMENT_CHARACTER))
+        .collect()
+}
+
+/// Bytes as UTF-8 where they are, else as Latin-1.
+fn latin1_unless_utf8(bytes: Vec<u8>) -> String {
     String::from_utf8(bytes)
         .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect())
 }
@@ -222,104 +314,407 @@ fn quoted(field: &str) -> String {
     }
 }
 
+/// The lines of a text, one at a time: split at LF, CRLF or a carriage
+/// return alone, each decoded on its own (UTF-8, else Latin-1), numbered
+/// from 1.
+struct Lines<R> {
+    reader: R,
+    /// The next line's number.
+    next: usize,
+    /// A carriage return ended the line before: a LF first is its end.
+    after_cr: bool,
+    buf: Vec<u8>,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(reader: R) -> Self {
+        Lines {
+            reader,
+            next: 1,
+            after_cr: false,
+            buf: Vec::new(),
+        }
+    }
+
+    /// The next line and its number; `None` at the end.
+    fn next_line(&mut self, path: &Path) -> Result<Option<(usize, String)>, CsvError> {
+        let unreadable = |e: std::io::Error| CsvError::new(path, 0, format!("cannot read: {e}"));
+        self.buf.clear();
+        let mut ended = false;
+        let mut any = false;
+        while !ended {
+            let chunk = self.reader.fill_buf().map_err(unreadable)?;
+            if chunk.is_empty() {
+                break;
+            }
+            any = true;
+            let mut used = 0;
+            if self.after_cr && chunk.first() == Some(&b'\n') {
+                used = 1;
+            }
+            self.after_cr = false;
+            let rest = chunk.get(used..).unwrap_or_default();
+            match rest.iter().position(|&b| b == b'\n' || b == b'\r') {
+                Some(at) => {
+                    self.buf.extend_from_slice(&rest[..at]);
+                    self.after_cr = rest[at] == b'\r';
+                    used += at + 1;
+                    ended = true;
+                }
+                None => {
+                    self.buf.extend_from_slice(rest);
+                    used += rest.len();
+                }
+            }
+            self.reader.consume(used);
+            if self.buf.len() > LINE_BYTES_MAX {
+                return Err(CsvError::new(
+                    path,
+                    self.next,
+                    format!(
+                        "a line over {} MiB: not a table of numbers",
+                        LINE_BYTES_MAX >> 20
+                    ),
+                ));
+            }
+        }
+        if !ended && self.buf.is_empty() && !any {
+            return Ok(None);
+        }
+        if !ended && self.buf.is_empty() {
+            // A lone LF after a CR at the very end.
+            return Ok(None);
+        }
+        let line = self.next;
+        self.next += 1;
+        Ok(Some((line, latin1_unless_utf8(std::mem::take(&mut self.buf)))))
+    }
+}
+
+/// A reader of UTF-16 (`le`: little-endian) that gives UTF-8, a chunk at
+/// a time (Excel's "Unicode text" read in one pass).
+struct Utf16ToUtf8<R> {
+    inner: R,
+    le: bool,
+    /// A byte or a high surrogate left from the chunk before.
+    carry: Vec<u8>,
+    out: Vec<u8>,
+    at: usize,
+}
+
+impl<R: Read> Read for Utf16ToUtf8<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        while self.at >= self.out.len() {
+            let mut raw = std::mem::take(&mut self.carry);
+            let have = raw.len();
+            raw.resize(have + 64 * 1024, 0);
+            let n = self.inner.read(&mut raw[have..])?;
+            raw.truncate(have + n);
+            if raw.is_empty() {
+                return Ok(0);
+            }
+            let mut whole = raw.len() / 2 * 2;
+            if n > 0 {
+                // Keep a high surrogate for the next chunk.
+                if whole >= 2 {
+                    let last = [raw[whole - 2], raw[whole - 1]];
+                    let unit = if self.le {
+                        u16::from_le_bytes(last)
+                    } else {
+                        u16::from_be_bytes(last)
+                    };
+                    if (0xD800..0xDC00).contains(&unit) {
+                        whole -= 2;
+                    }
+                }
+            } else {
+                whole = raw.len();
+            }
+            self.carry = raw.split_off(whole);
+            if n == 0 {
+                self.carry.clear();
+            }
+            self.out = utf16(&raw, self.le).into_bytes();
+            self.at = 0;
+        }
+        let n = buf.len().min(self.out.len() - self.at);
+        buf[..n].copy_from_slice(&self.out[self.at..self.at + n]);
+        self.at += n;
+        Ok(n)
+    }
+}
+
 impl Table {
     /// Parses `text` (the contents of `path`).
+    pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
+        Table::from_lines(path, Lines::new(text.as_bytes()))
+    }
+
+    /// Reads and parses the file at `path` in one pass.
+    pub fn read(path: &Path) -> Result<Table, CsvError> {
+        let file = std::fs::File::open(path)
+            .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+        Table::from_reader(path, file)
+    }
+
+    /// Reads a table from `reader` (the contents of `path`) in one pass:
+    /// UTF-16 with its mark transcoded as it is read.
+    pub fn from_reader(path: &Path, reader: impl Read) -> Result<Table, CsvError> {
+        let mut reader = BufReader::with_capacity(256 * 1024, reader);
+        let mark = reader
+            .fill_buf()
+            .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
+        let le = match mark.get(..2) {
+            Some([0xFF, 0xFE]) => Some(true),
+            Some([0xFE, 0xFF]) => Some(false),
+            _ => None,
+        };
+        match le {
+            Some(le) => {
+                reader.consume(2);
+                let utf8 = Utf16ToUtf8 {
+                    inner: reader,
+                    le,
+                    carry: Vec::new(),
+                    out: Vec::new(),
+                    at: 0,
+                };
+                Table::from_lines(path, Lines::new(BufReader::new(utf8)))
+            }
+            None => Table::from_lines(path, Lines::new(reader)),
+        }
+    }
+
+    /// The table of `lines`.
     ///
     /// The header is the line just before the first data row (two or more
     /// fields, all numbers, `NaN` or empty) where it has as many fields or
-    /// two or more and is no data row itself; the lines above it are the preamble. A
-    /// file whose first data row follows no such line has no header: its
-    /// columns are named `column 1`, `column 2`, ... and every line above
-    /// is preamble (a logger's messages).
-    pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        // A carriage return alone ends a line too (old Mac line ends, or
-        // files joined from several tools).
-        let cr_alone;
-        let text = if text.split("\r\n").any(|part| part.contains('\r')) {
-            cr_alone = text.replace("\r\n", "\n").replace('\r', "\n");
-            cr_alone.as_str()
-        } else {
-            text
-        };
-        let lines: Vec<(usize, &str)> = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l))
-            .filter(|(_, l)| !l.trim().is_empty())
-            .collect();
-        if lines.is_empty() {
-            return Err(CsvError::new(path, 0, "empty file"));
-        }
+    /// two or more and is no data row itself; the lines above it are the
+    /// preamble. A file whose first data row follows no such line has no
+    /// header: its columns are named `column 1`, `column 2`, ... and every
+    /// line above is preamble (a logger's messages).
+    fn from_lines<R: BufRead>(path: &Path, mut lines: Lines<R>) -> Result<Table, CsvError> {
         let unreadable =
             |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
-        // The first data row, its separator its own.
+        // The lines up to the first data row, held.
+        let mut head: Vec<(usize, String)> = Vec::new();
         let mut first_data = None;
-        for (k, &(line, l)) in lines.iter().enumerate() {
-            let sep = separator(l);
-            if let Some(f) = fields(l, sep).map_err(|e| unreadable(line, e))?
-                && is_data(&f, sep)
+        while let Some((line, mut text)) = lines.next_line(path)? {
+            if line == 1 && text.starts_with('\u{feff}') {
+                text.drain(..'\u{feff}'.len_utf8());
+            }
+            if text.trim().is_empty() {
+                continue;
+            }
+            let sep = separator(&text);
+            let f = fields(&text, sep).map_err(|e| unreadable(line, e))?;
+            head.push((line, text));
+            if let Some(f) = f
+                && is_data(&f)
             {
                 // Rows just above it no wider, values missing (a first
                 // frame the tracker lost), are data too, not its header.
-                let mut k = k;
-                while let Some(&(_, above)) = k.checked_sub(1).and_then(|j| lines.get(j)) {
+                let mut k = head.len() - 1;
+                while let Some((_, above)) = k.checked_sub(1).and_then(|j| head.get(j)) {
                     match fields(above, sep) {
-                        Ok(Some(g)) if g.len() <= f.len() && is_partial_data(&g, sep) => k -= 1,
+                        Ok(Some(g)) if g.len() <= f.len() && is_partial_data(&g) => k -= 1,
                         _ => break,
                     }
                 }
                 first_data = Some((k, sep, f.len()));
                 break;
             }
+            if head.len() >= HEAD_LINES_MAX {
+                return Err(CsvError::new(
+                    path,
+                    0,
+                    format!(
+                        "no row of numbers in its first {HEAD_LINES_MAX} lines: not a table of a recording"
+                    ),
+                ));
+            }
+        }
+        if head.is_empty() {
+            return Err(CsvError::new(path, 0, "empty file"));
         }
         // No data row: the first line is the header (the readers say what
         // is missing).
-        let (data_at, sep, width) = first_data.unwrap_or((1, separator(lines[0].1), 0));
+        let (data_at, sep, width) = first_data.unwrap_or((1, separator(&head[0].1), 0));
         let header_at = data_at.checked_sub(1).filter(|&k| {
-            let (_, l) = lines[k];
-            let f = fields(l, sep).ok().flatten().unwrap_or_default();
-            first_data.is_none() || ((f.len() == width || f.len() >= 2) && !is_data(&f, sep))
+            let f = fields(&head[k].1, sep).ok().flatten().unwrap_or_default();
+            first_data.is_none() || ((f.len() == width || f.len() >= 2) && !is_data(&f))
         });
         let header = match header_at {
-            Some(k) => fields(lines[k].1, sep)
-                .map_err(|e| unreadable(lines[k].0, e))?
+            Some(k) => fields(&head[k].1, sep)
+                .map_err(|e| unreadable(head[k].0, e))?
                 .unwrap_or_default(),
             None => (1..=width).map(|c| format!("column {c}")).collect(),
         };
-        let preamble = lines[..header_at.unwrap_or(data_at)]
+        let preamble = head[..header_at.unwrap_or(data_at)]
             .iter()
             .map(|(_, l)| l.trim().to_string())
             .collect();
-        let mut rows = Vec::new();
-        for &(line, l) in lines.iter().skip(data_at) {
-            if let Some(fields) = fields(l, sep).map_err(|e| unreadable(line, e))? {
-                rows.push(Row { line, fields });
-            }
-        }
-        Ok(Table {
+        let mut table = Table {
             path: path.to_path_buf(),
             preamble,
-            header,
             named: header_at.is_some(),
-            rows,
+            columns: vec![Vec::new(); header.len()],
+            text: vec![None; header.len()],
+            header,
+            lines: Vec::new(),
+            ragged: None,
             separator: sep,
-        })
+        };
+        for (line, text) in head.iter().skip(data_at) {
+            table.push_line(*line, text)?;
+        }
+        drop(head);
+        while let Some((line, text)) = lines.next_line(path)? {
+            table.push_line(line, &text)?;
+        }
+        Ok(table)
     }
 
-    /// A further line of this table's file (at 1-based `line`) as a row,
-    /// `None` where it is blank.
-    pub fn row(&self, line: usize, text_line: &str) -> Result<Option<Row>, CsvError> {
-        Ok(fields(text_line, self.separator)
+    /// A further line of this table's file (at 1-based `line`) kept as a
+    /// row; `false` where it is blank.
+    pub fn push_line(&mut self, line: usize, text_line: &str) -> Result<bool, CsvError> {
+        let Some(fields) = fields(text_line, self.separator)
             .map_err(|e| self.error(line, format!("unreadable: {e}")))?
-            .map(|fields| Row { line, fields }))
+        else {
+            return Ok(false);
+        };
+        let row = self.lines.len();
+        if fields.len() != self.header.len() && self.ragged.is_none() {
+            self.ragged = Some((row, fields.len()));
+        }
+        for (k, column) in self.columns.iter_mut().enumerate() {
+            let field = fields.get(k).map_or("", String::as_str);
+            let v = if field.is_empty() {
+                f64::from_bits(BLANK)
+            } else {
+                match number(field) {
+                    Some(v) => v,
+                    None => {
+                        let first = &mut self.text[k];
+                        if first.is_none() {
+                            *first = Some((row, field.to_string()));
+                        }
+                        f64::NAN
+                    }
+                }
+            };
+            column.push(v);
+        }
+        self.lines.push(u32::try_from(line).unwrap_or(u32::MAX));
+        Ok(true)
     }
 
-    /// Reads and parses the file at `path`.
-    pub fn read(path: &Path) -> Result<Table, CsvError> {
-        let bytes =
-            std::fs::read(path).map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
-        Table::parse(path, &decode(bytes))
+    /// Rows kept.
+    pub fn len(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// Whether no row is kept.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty()
+    }
+
+    /// Row `row`'s 1-based line in the file.
+    pub fn line(&self, row: usize) -> usize {
+        self.lines.get(row).map_or(0, |&l| l as usize)
+    }
+
+    /// Column `k`'s values (NaN where a row has none).
+    pub fn column(&self, k: usize) -> &[f64] {
+        self.columns.get(k).map_or(&[], Vec::as_slice)
+    }
+
+    /// The first row whose number of fields is not the header's: its row
+    /// and its number of fields.
+    pub fn ragged(&self) -> Option<(usize, usize)> {
+        self.ragged
+    }
+
+    /// The rows `keep` says, and only those (a run's rows, or none: a
+    /// stream lets its rows go).
+    pub fn retain_rows(&mut self, keep: impl Fn(usize) -> bool) {
+        let kept: Vec<bool> = (0..self.len()).map(keep).collect();
+        let mut new_index = vec![usize::MAX; kept.len()];
+        let mut n = 0;
+        for (k, &keep) in kept.iter().enumerate() {
+            if keep {
+                new_index[k] = n;
+                n += 1;
+            }
+        }
+        let pick = |v: &mut Vec<f64>| {
+            let mut k = 0;
+            v.retain(|_| {
+                k += 1;
+                kept[k - 1]
+            });
+        };
+        self.columns.iter_mut().for_each(pick);
+        let mut k = 0;
+        self.lines.retain(|_| {
+            k += 1;
+            kept[k - 1]
+        });
+        for t in &mut self.text {
+            *t = t
+                .take()
+                .and_then(|(r, s)| (new_index[r] != usize::MAX).then(|| (new_index[r], s)));
+        }
+        self.ragged = self
+            .ragged
+            .and_then(|(r, n)| (new_index[r] != usize::MAX).then(|| (new_index[r], n)));
+    }
+
+    /// The same rows with only the columns `cols` (in that order).
+    pub fn select(&self, cols: &[usize]) -> Table {
+        let get = |k: usize| self.columns.get(k).cloned().unwrap_or_default();
+        Table {
+            path: self.path.clone(),
+            preamble: self.preamble.clone(),
+            header: cols
+                .iter()
+                .map(|&k| self.header.get(k).cloned().unwrap_or_default())
+                .collect(),
+            named: self.named,
+            separator: self.separator,
+            columns: cols.iter().map(|&k| get(k)).collect(),
+            lines: self.lines.clone(),
+            text: cols
+                .iter()
+                .map(|&k| self.text.get(k).cloned().flatten())
+                .collect(),
+            ragged: None,
+        }
+    }
+
+    /// A table of columns given whole (a workbook's sheet, a phyphox
+    /// file's buffers): `header` and the values, the same number of each,
+    /// each row on the line of its place.
+    pub fn of_columns(path: &Path, header: Vec<String>, columns: Vec<Vec<f64>>) -> Table {
+        let rows = columns.iter().map(Vec::len).max().unwrap_or(0);
+        let columns: Vec<Vec<f64>> = columns
+            .into_iter()
+            .map(|mut c| {
+                c.resize(rows, f64::from_bits(BLANK));
+                c
+            })
+            .collect();
+        Table {
+            path: path.to_path_buf(),
+            preamble: Vec::new(),
+            text: vec![None; header.len()],
+            header,
+            named: true,
+            separator: b',',
+            columns,
+            lines: (1..=rows).map(|r| u32::try_from(r + 1).unwrap_or(u32::MAX)).collect(),
+            ragged: None,
+        }
     }
 
     /// A problem at `line`.
@@ -327,32 +722,63 @@ impl Table {
         CsvError::new(&self.path, line, problem)
     }
 
-    /// Field `k` of `row` as a finite number; `what` names it in errors.
-    pub fn number(&self, row: &Row, k: usize, what: &str) -> Result<f64, CsvError> {
-        match self.optional_number(row, k, what)? {
+    /// Field `k` of row `row` as a finite number; `what` names it in errors.
+    pub fn number(&self, row: usize, k: usize, what: &str) -> Result<f64, CsvError> {
+        match self.value(row, k, what)? {
             Some(v) if v.is_finite() => Ok(v),
-            Some(v) => Err(self.error(row.line, format!("{what} is {v}, not a finite number"))),
-            None => Err(self.error(row.line, format!("missing {what} (column {})", k + 1))),
+            Some(v) => Err(self.error(
+                self.line(row),
+                format!("{what} is {v}, not a finite number"),
+            )),
+            None if self.is_blank(row, k) => Err(self.error(
+                self.line(row),
+                format!("missing {what} (column {})", k + 1),
+            )),
+            None => Err(self.error(
+                self.line(row),
+                format!("{what} is NaN, not a finite number"),
+            )),
         }
     }
 
-    /// Field `k` of `row` as a number, `None` where it is empty or
-    /// missing (`NaN` is returned as NaN); text is an error.
-    pub fn optional_number(
-        &self,
-        row: &Row,
-        k: usize,
-        what: &str,
-    ) -> Result<Option<f64>, CsvError> {
-        let Some(f) = row.fields.get(k).filter(|f| !f.is_empty()) else {
-            return Ok(None);
-        };
-        let v = parse_number(f, self.separator)
-            .ok_or_else(|| self.error(row.line, format!("{what} {} is not a number", quoted(f))))?;
-        if v.is_infinite() {
-            return Err(self.error(row.line, format!("{what} is {v}, not a finite number")));
+    /// Field `k` of row `row` as a number, `None` where it is empty,
+    /// missing or `NaN`; text and an infinity are errors.
+    pub fn value(&self, row: usize, k: usize, what: &str) -> Result<Option<f64>, CsvError> {
+        if let Some(Some((r, text))) = self.text.get(k)
+            && *r == row
+        {
+            return Err(self.error(
+                self.line(row),
+                format!("{what} {} is not a number", quoted(text)),
+            ));
         }
-        Ok(Some(v))
+        let v = self
+            .columns
+            .get(k)
+            .and_then(|c| c.get(row))
+            .copied()
+            .unwrap_or(f64::NAN);
+        if v.is_infinite() {
+            return Err(self.error(
+                self.line(row),
+                format!("{what} is {v}, not a finite number"),
+            ));
+        }
+        Ok((!v.is_nan()).then_some(v))
+    }
+
+    /// Whether field `k` of row `row` is empty or absent (not `NaN`, not
+    /// text).
+    pub fn is_blank(&self, row: usize, k: usize) -> bool {
+        self.columns
+            .get(k)
+            .and_then(|c| c.get(row))
+            .is_none_or(|v| v.to_bits() == BLANK)
+    }
+
+    /// The first row of column `k` whose field is text, if one.
+    pub fn first_text(&self, k: usize) -> Option<usize> {
+        self.text.get(k).and_then(|t| t.as_ref().map(|(r, _)| *r))
     }
 }
 
@@ -385,8 +811,8 @@ mod tests {
         assert_eq!(fields("\u{feff}t,x", b',').unwrap().unwrap(), ["t", "x"]);
         // A carriage return alone ends a line, among LF and CRLF ones.
         let t = Table::parse(Path::new("m.csv"), "t,x\n0,1\r1,2\r\n2,3\n").unwrap();
-        assert_eq!(t.rows.len(), 3);
-        assert_eq!(t.rows[2].fields, ["2", "3"]);
+        assert_eq!(t.len(), 3);
+        assert_eq!((t.line(2), t.column(1)[2]), (4, 3.0));
         assert_eq!(fields("[1.0, 2.0]", b',').unwrap().unwrap(), ["1.0", "2.0"]);
     }
 
@@ -395,12 +821,15 @@ mod tests {
         let text = "\nt\ttheta [deg]\n0\t1\n\n0.1\t2\n";
         let t = Table::parse(Path::new("a.tsv"), text).unwrap();
         assert_eq!(t.header, ["t", "theta [deg]"]);
-        assert_eq!(t.rows.len(), 2);
+        assert_eq!(t.len(), 2);
         // Lines are the file's: the header is on line 2, the last row on 5.
-        assert_eq!(t.rows[1].line, 5);
-        assert_eq!(t.number(&t.rows[1], 1, "theta").unwrap(), 2.0);
-        let e = t.number(&t.rows[1], 2, "rate").unwrap_err();
-        assert_eq!(e.to_string(), "a.tsv:5: missing rate (column 3)");
+        assert_eq!(t.line(1), 5);
+        assert_eq!(t.number(1, 1, "theta").unwrap(), 2.0);
+        let e = t.number(1, 2, "rate").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "a.tsv:5: missing rate (column 3)"
+        );
         assert_eq!(separator("a;b;c"), b';');
         assert_eq!(separator("a,b"), b',');
         assert_eq!(separator("single"), b',');
@@ -408,21 +837,19 @@ mod tests {
         assert_eq!(e.to_string(), "e.csv: empty file");
         let t = Table::parse(Path::new("n.csv"), "t,x\n0,NaN\n1,abc\n").unwrap();
         assert!(
-            t.number(&t.rows[0], 1, "x")
+            t.number(0, 1, "x")
                 .unwrap_err()
                 .to_string()
                 .starts_with("n.csv:2: x is NaN")
         );
         assert!(
-            t.number(&t.rows[1], 1, "x")
+            t.number(1, 1, "x")
                 .unwrap_err()
                 .to_string()
                 .contains("n.csv:3: x \"abc\" is not a number")
         );
     }
 
-    /// A byte-order mark, CRLF and decimal commas with tab or semicolon
-    /// separators; a comma-separated file keeps its commas as separators.
     /// A first frame with its values missing (a tracker that lost the
     /// bob, tabs trimmed off) is a row, not the header, which stays the
     /// line above it.
@@ -432,30 +859,40 @@ mod tests {
         let t = Table::parse(Path::new("tracker.txt"), text).unwrap();
         assert_eq!(t.header, ["t", "x", "y"]);
         assert_eq!(t.preamble, ["mass_A"]);
-        assert_eq!(t.rows.len(), 3);
-        assert_eq!(t.rows[0].line, 3);
+        assert_eq!(t.len(), 3);
+        assert_eq!(t.line(0), 3);
     }
 
-    /// UTF-16 with its mark (Excel's "Unicode text", tab-separated) and
-    /// a carriage return alone as the line end are read; a long cell where
-    /// a number belongs is quoted short in the error.
+    /// UTF-16 with its mark (Excel's "Unicode text", tab-separated), read
+    /// from bytes a chunk at a time, and a carriage return alone as the
+    /// line end are read; a long cell where a number belongs is quoted
+    /// short in the error.
     #[test]
     fn utf_16_old_mac_line_ends_and_a_long_cell() {
-        let text = "Time (s)\tAngle (rad)\r\n0\t0.3\r\n0.02\t0.29\r\n";
-        let mut bytes = vec![0xFF, 0xFE];
-        bytes.extend(text.encode_utf16().flat_map(u16::to_le_bytes));
-        let t = Table::parse(Path::new("u.txt"), &decode(bytes)).unwrap();
-        assert_eq!(t.header, ["Time (s)", "Angle (rad)"]);
-        assert_eq!(t.rows.len(), 2);
+        let text = "Time (s)\tAngle (°)\r\n0\t0.3\r\n0.02\t0.29\r\n";
+        for le in [true, false] {
+            let mut bytes = if le { vec![0xFF, 0xFE] } else { vec![0xFE, 0xFF] };
+            bytes.extend(text.encode_utf16().flat_map(|u| {
+                if le {
+                    u.to_le_bytes()
+                } else {
+                    u.to_be_bytes()
+                }
+            }));
+            let t = Table::from_reader(Path::new("u.txt"), bytes.as_slice()).unwrap();
+            assert_eq!(t.header, ["Time (s)", "Angle (°)"]);
+            assert_eq!(t.len(), 2);
+            assert_eq!(decode(bytes), text);
+        }
         let t = Table::parse(Path::new("m.csv"), "t,theta\r0,0.3\r0.02,0.29\r").unwrap();
-        assert_eq!((t.header.len(), t.rows.len()), (2, 2));
+        assert_eq!((t.header.len(), t.len()), (2, 2));
         let long = "x".repeat(100_000);
         let t = Table::parse(
             Path::new("l.csv"),
             &format!("t,theta\n0,0.3\n0.02,{long}\n"),
         )
         .unwrap();
-        let e = t.number(&t.rows[1], 1, "theta").unwrap_err().to_string();
+        let e = t.number(1, 1, "theta").unwrap_err().to_string();
         assert!(
             e.len() < 200 && e.contains("..."),
             "{}",
@@ -463,12 +900,28 @@ mod tests {
         );
     }
 
+    /// One endless line (a binary, a file of one line) is refused at
+    /// [`LINE_BYTES_MAX`], and a text with no row of numbers in its first
+    /// [`HEAD_LINES_MAX`] lines at that, without holding the rest.
+    #[test]
+    fn an_endless_line_and_an_endless_preamble_are_refused() {
+        let endless = std::io::repeat(b'x').take(LINE_BYTES_MAX as u64 + 10);
+        let e = Table::from_reader(Path::new("b.bin"), endless).unwrap_err();
+        assert!(e.to_string().contains("a line over 16 MiB"), "{e}");
+        let mut text = String::new();
+        for _ in 0..HEAD_LINES_MAX + 5 {
+            text.push_str("words, not numbers\n");
+        }
+        let e = Table::parse(Path::new("w.txt"), &text).unwrap_err();
+        assert!(e.to_string().contains("no row of numbers"), "{e}");
+    }
+
     /// Columns aligned by runs of spaces are read as columns.
     #[test]
     fn columns_aligned_by_spaces() {
         let t = Table::parse(Path::new("s.txt"), "t   theta\n0.00   0.30\n0.02  0.29\n").unwrap();
         assert_eq!(t.header, ["t", "theta"]);
-        assert_eq!(t.rows[1].fields, ["0.02", "0.29"]);
+        assert_eq!((t.column(0)[1], t.column(1)[1]), (0.02, 0.29));
     }
 
     #[test]
@@ -476,15 +929,47 @@ mod tests {
         let text = "\u{feff}Time (s)\tAngle (rad)\r\n0,0000\t-1,25\r\n\r\n0,0200\t3\r\n";
         let t = Table::parse(Path::new("p.txt"), text).unwrap();
         assert_eq!(t.header, ["Time (s)", "Angle (rad)"]);
-        assert_eq!(t.rows[1].line, 4);
-        assert_eq!(t.number(&t.rows[0], 1, "angle").unwrap(), -1.25);
-        assert_eq!(t.number(&t.rows[1], 0, "time").unwrap(), 0.02);
+        assert_eq!(t.line(1), 4);
+        assert_eq!(t.number(0, 1, "angle").unwrap(), -1.25);
+        assert_eq!(t.number(1, 0, "time").unwrap(), 0.02);
         let t = Table::parse(Path::new("s.csv"), "t;x\n1,5;2\n1,2,3;4.5\n").unwrap();
-        assert_eq!(t.number(&t.rows[0], 0, "t").unwrap(), 1.5);
-        assert!(t.number(&t.rows[1], 0, "t").is_err());
-        assert_eq!(t.number(&t.rows[1], 1, "x").unwrap(), 4.5);
-        let t = Table::parse(Path::new("c.csv"), "t,x\n1,5\n").unwrap();
-        assert_eq!(t.rows[0].fields, ["1", "5"]);
+        assert_eq!(t.number(0, 0, "t").unwrap(), 1.5);
+        assert!(t.number(1, 0, "t").is_err());
+        assert_eq!(t.number(1, 1, "x").unwrap(), 4.5);
+        // A comma-separated file: a field with a decimal comma is quoted.
+        let t = Table::parse(Path::new("c.csv"), "t,x\n1,5\n\"0,5\",\"−1,5E−1\"\n").unwrap();
+        assert_eq!(t.column(0), [1.0, 0.5]);
+        assert_eq!(t.column(1), [5.0, -0.15]);
+    }
+
+    /// The one number reader: every form a locale or tool writes, and
+    /// text that is none. Golden values typed from the forms' meaning.
+    #[test]
+    fn numbers_in_every_written_form() {
+        for (field, want) in [
+            ("6,442E−2", 0.06442),
+            ("−0,5", -0.5),
+            ("\u{2012}1.5", -1.5),
+            ("\u{2013}1.5e\u{2013}1", -0.15),
+            ("\u{FE63}2", -2.0),
+            ("\u{FF0D}2,5", -2.5),
+            ("1e+3", 1000.0),
+            ("+1,5E+2", 150.0),
+            ("1\u{A0}234,5", 1234.5),
+            ("1\u{2009}234.5", 1234.5),
+            ("1\u{202F}234,5", 1234.5),
+            ("1'234.5", 1234.5),
+            ("1.234,5", 1234.5),
+            ("1,234.5", 1234.5),
+            ("9.969000006E-3", 0.009969000006),
+            ("  0.25 ", 0.25),
+        ] {
+            assert_eq!(number(field), Some(want), "{field}");
+        }
+        assert!(number("NaN").unwrap().is_nan());
+        for text in ["abc", "1,2,3", "1.2.3", "t", "", "−", "1,2.3,4"] {
+            assert_eq!(number(text), None, "{text}");
+        }
     }
 
     /// A file that is not UTF-8 is read as Latin-1: a Windows tool's `°`.
@@ -507,26 +992,29 @@ mod tests {
         assert_eq!(t.preamble, ["mass_A"]);
         assert_eq!(t.header, ["t", "x", "y"]);
         assert!(t.named);
-        assert_eq!(t.number(&t.rows[0], 1, "x").unwrap(), 0.1);
-        assert_eq!(t.rows[0].line, 3);
+        assert_eq!(t.number(0, 1, "x").unwrap(), 0.1);
+        assert_eq!(t.line(0), 3);
         let text = "Spatial 302088 Attached!\nwaiting 30 seconds to start...\n[31.052, 0.03, 0.99]\n[31.056, NaN, 1e-2]\n";
         let t = Table::parse(Path::new("imu.txt"), text).unwrap();
         assert!(!t.named);
         assert_eq!(t.header, ["column 1", "column 2", "column 3"]);
         assert_eq!(t.preamble.len(), 2);
-        assert_eq!(t.rows[1].fields, ["31.056", "NaN", "1e-2"]);
+        assert_eq!(t.column(2)[1], 1e-2);
+        assert_eq!(t.value(1, 1, "x").unwrap(), None);
+        assert_eq!(t.value(1, 5, "x").unwrap(), None);
         assert!(
-            t.optional_number(&t.rows[1], 1, "x")
-                .unwrap()
-                .unwrap()
-                .is_nan()
-        );
-        assert_eq!(t.optional_number(&t.rows[1], 5, "x").unwrap(), None);
-        assert!(
-            t.number(&t.rows[1], 1, "x")
+            t.number(1, 1, "x")
                 .unwrap_err()
                 .to_string()
                 .contains("imu.txt:4: x is NaN")
         );
+    }
+
+    #[test]
+    fn a_list_names_ten_then_how_many_more() {
+        let items: Vec<String> = (1..=25).map(|k| format!("e{k}")).collect();
+        let text = listed(&items, ", ");
+        assert!(text.starts_with("e1, e2,") && text.ends_with("e10, and 15 more"), "{text}");
+        assert_eq!(listed(&items[..2], "; "), "e1; e2");
     }
 }

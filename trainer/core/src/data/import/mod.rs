@@ -50,6 +50,8 @@ mod archive;
 mod checks;
 mod differentiate;
 mod glitch;
+mod order;
+mod phyphox;
 mod position;
 mod rate_only;
 mod read;
@@ -65,6 +67,7 @@ pub use differentiate::{
     JITTER_ROOM, differentiate, differentiate_uneven, rough_period, uneven_half,
 };
 pub use glitch::glitches;
+pub use order::{BACK_MAX_S, Order, SCRAMBLED_SHARE, in_time_order};
 pub use position::{PivotFrom, Pivoted, about_pivot};
 pub use rate_only::{Integrated, integrate};
 pub use read::{
@@ -249,6 +252,7 @@ pub(crate) fn rollout_on_grid(
         interpolated: grid.interpolated,
         glitches: dropped,
         angle_from: AngleFrom::Measured.word().into(),
+        reordered: 0,
     };
     let rollout = Rollout {
         id,
@@ -316,8 +320,9 @@ pub fn read_recordings(
     let many = tables.len() > 1;
     let mut out = Vec::new();
     let mut refused = Vec::new();
-    for table in &tables {
-        match parse_runs(table, opts) {
+    // Each table let go once read (its numbers are the recording's again).
+    for table in tables {
+        match parse_runs(&table, opts) {
             Ok(runs) => out.extend(runs.into_iter().flat_map(split_releases)),
             // Of an archive's tables, those without a recording are passed
             // over (a phyphox zip's metadata), and named if none has one.
@@ -329,7 +334,7 @@ pub fn read_recordings(
         !out.is_empty(),
         "{}: no table holds a recording: {}",
         path.display(),
-        refused.join("; ")
+        crate::data::table::listed(&refused, "; ")
     );
     Ok(out)
 }
@@ -393,6 +398,7 @@ fn import_one(
     };
     let (rollout, mut source) = to_rollout_with_source(rec, id, &opts)?;
     source.angle_from = layout.angle_from.word().into();
+    source.reordered = layout.reordered;
     Ok((rollout, source))
 }
 
@@ -422,8 +428,8 @@ mod tests {
             assert!((x[0] - 2.0 * (t + 0.1)).abs() < 1e-9);
             assert_eq!(x[1], 2.0);
         }
-        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n-1,2\n", &opts).unwrap_err();
-        assert!(e.to_string().contains("p.csv:3"), "{e}");
+        let e = parse(Path::new("p.csv"), "t,theta\n0,1\n5,2\n1,3\n", &opts).unwrap_err();
+        assert!(e.to_string().contains("p.csv:4") && e.to_string().contains("clock reset"), "{e}");
     }
 
     #[test]

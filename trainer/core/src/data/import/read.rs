@@ -21,7 +21,7 @@
 
 use std::path::Path;
 
-use crate::data::table::{CsvError, Row, Table};
+use crate::data::table::{CsvError, Table, listed};
 
 use super::position::{PivotFrom, about_pivot};
 use super::rate_only::integrate;
@@ -181,6 +181,10 @@ pub struct Layout {
     /// Rows skipped whose time repeats the row's before (a logger that
     /// wrote one sample twice).
     pub repeated: usize,
+    /// Rows whose time is before a row's above them (a phone's sensor
+    /// events delivered out of order), put in time order
+    /// ([`super::order`]).
+    pub reordered: usize,
 }
 
 impl Layout {
@@ -201,6 +205,7 @@ impl Layout {
             skipped: 0,
             release: None,
             repeated: 0,
+            reordered: 0,
         }
     }
 
@@ -270,6 +275,13 @@ impl Layout {
         if let Some((k, n, from, to)) = self.release {
             text.push_str(&format!("; release {k} of {n}, {from:.2} to {to:.2} s"));
         }
+        if self.reordered > 0 {
+            text.push_str(&format!(
+                "; {} row{} out of time order put in order",
+                self.reordered,
+                if self.reordered == 1 { "" } else { "s" }
+            ));
+        }
         if self.repeated > 0 {
             text.push_str(&format!(
                 "; {} row{} repeating the time before skipped",
@@ -307,7 +319,12 @@ fn unit_words((unit, source): (Unit, UnitSource), per: &str) -> String {
 /// suffixes it (`Run #1`).
 fn tool_of(header: &[String], preamble: &[String]) -> Option<&'static str> {
     let bare_header: Vec<String> = header.iter().map(|h| bare(h)).collect();
-    if preamble.len() == 1 && bare_header.first().is_some_and(|h| h == "t") {
+    // Tracker: `t` first, under the track's name or with `x` and `y`
+    // (its Export Data without the name line).
+    let has = |name: &str| bare_header.iter().any(|h| h == name);
+    if bare_header.first().is_some_and(|h| h == "t")
+        && (preamble.len() == 1 || (has("x") && has("y")))
+    {
         return Some("Tracker");
     }
     if header.iter().any(|h| {
@@ -391,7 +408,7 @@ fn find(
                         1,
                         format!(
                             "no {what} column named {g:?} in the header {:?}",
-                            table.header.join(",")
+                            listed(&table.header, ",")
                         ),
                     )
                 })
@@ -406,21 +423,20 @@ fn find(
 /// `trigger_start_deg, sample_rate, duration_sec`, line 2 holds their
 /// values, then one angle per line in degrees.
 fn parse_encoder(table: &Table) -> Result<Recording, CsvError> {
-    let values = table
-        .rows
-        .first()
-        .ok_or_else(|| table.error(2, "missing the values line"))?;
+    if table.is_empty() {
+        return Err(table.error(2, "missing the values line"));
+    }
     let k = table
         .header
         .iter()
         .position(|n| n.to_lowercase() == "sample_rate")
         .ok_or_else(|| table.error(1, "no sample_rate field"))?;
-    let rate = table.number(values, k, "sample_rate")?;
+    let rate = table.number(0, k, "sample_rate")?;
     if rate <= 0.0 {
-        return Err(table.error(values.line, "sample_rate must be positive"));
+        return Err(table.error(table.line(0), "sample_rate must be positive"));
     }
-    let mut theta = Vec::new();
-    for row in table.rows.iter().skip(1) {
+    let mut theta = Vec::with_capacity(table.len());
+    for row in 1..table.len() {
         theta.push(table.number(row, 0, "angle")?.to_radians());
     }
     let t = (0..theta.len()).map(|k| k as f64 / rate).collect();
@@ -536,25 +552,10 @@ fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
             let cols: Vec<usize> = (0..table.header.len())
                 .filter(|&k| marks[k].as_ref().is_none_or(|m| *m == run))
                 .collect();
-            let pick = |fields: &[String]| -> Vec<String> {
-                cols.iter()
-                    .map(|&k| fields.get(k).cloned().unwrap_or_default())
-                    .collect()
-            };
-            let rows = table
-                .rows
-                .iter()
-                .map(|r| Row {
-                    line: r.line,
-                    fields: pick(&r.fields),
-                })
-                .filter(|r| r.fields.iter().any(|f| !f.is_empty()))
-                .collect();
-            let sub = Table {
-                header: pick(&table.header),
-                rows,
-                ..table.clone()
-            };
+            let mut sub = table.select(&cols);
+            let has_value = |r: usize| (0..cols.len()).any(|c| !sub.is_blank(r, c));
+            let keep: Vec<bool> = (0..sub.len()).map(has_value).collect();
+            sub.retain_rows(|r| keep[r]);
             (Some(run), sub)
         })
         .collect()
@@ -582,6 +583,7 @@ fn rate_axis(field: &str) -> Option<char> {
         stem,
         "gyroscope"
             | "gyro"
+            | "gyr"
             | "g"
             | "w"
             | "rotation"
@@ -648,9 +650,12 @@ fn columns_guessed(table: &Table) -> String {
         .header
         .iter()
         .enumerate()
+        .take(crate::data::table::LIST_MAX + 1)
         .map(|(k, h)| format!("{} {h:?} ({})", k + 1, could_be(table, k)))
         .collect();
-    columns.join(", ")
+    let mut all = columns;
+    all.resize(table.header.len(), String::new());
+    listed(&all, ", ")
 }
 
 /// What column `k` could be, by its name, unit and values.
@@ -665,9 +670,9 @@ fn could_be(table: &Table, k: usize) -> String {
         None => {}
     }
     let v: Vec<f64> = table
-        .rows
+        .column(k)
         .iter()
-        .filter_map(|r| table.optional_number(r, k, "").ok().flatten())
+        .copied()
         .filter(|v| v.is_finite())
         .collect();
     if v.len() < 3 {
@@ -721,13 +726,20 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
         Holds::Rate(axes) => axes.clone(),
         Holds::Position { x, y } => vec![*x, *y],
     };
-    let (t, values, skipped, repeated) = read_rows(table, ti, &cols, opts.rate)?;
+    let Rows {
+        t,
+        values,
+        skipped,
+        repeated,
+        reordered,
+    } = read_rows(table, ti, &cols, opts.rate)?;
     let header = |k: usize| table.header[k].clone();
     let unit_of = |k: usize, fallback| column_unit(&table.header[k], opts, fallback);
     let options_unit = (opts.unit, UnitSource::Options);
     let mut layout = Layout {
         skipped,
         repeated,
+        reordered,
         ..Layout::of(table, ti, options_unit)
     };
     let recording = match holds {
@@ -885,78 +897,87 @@ pub(crate) enum RowRead {
     Values(f64, Vec<f64>),
     /// No time or a value missing (empty or `NaN`): skipped.
     Empty,
-    /// Its time repeats the one before: skipped.
-    Repeated,
 }
 
 /// Row `row` (the `place`-th of its table): its time (column `ti` times
 /// its seconds per unit, else its place at `rate` Hz) and the values of
-/// `cols`; a time going back
-/// from `prev` is an error naming the line, text where a number belongs
-/// too.
+/// `cols`; text where a number belongs is an error naming the line.
 pub(crate) fn read_row(
     table: &Table,
-    row: &Row,
+    row: usize,
     place: usize,
     (ti, rate): (Option<(usize, f64)>, Option<f64>),
     cols: &[usize],
-    prev: Option<f64>,
 ) -> Result<RowRead, CsvError> {
     let time = match (ti, rate) {
-        (Some((k, scale)), _) => table.optional_number(row, k, "time")?.map(|v| v * scale),
+        (Some((k, scale)), _) => table.value(row, k, "time")?.map(|v| v * scale),
         (None, Some(r)) => Some(place as f64 / r),
         (None, None) => None,
     };
     let mut got = Vec::with_capacity(cols.len());
     for &k in cols {
-        got.push(table.optional_number(row, k, &bare(&table.header[k]))?);
+        got.push(table.value(row, k, &bare(&table.header[k]))?);
     }
-    let (Some(time), Some(got)) = (
+    match (
         time.filter(|v| v.is_finite()),
         got.into_iter().collect::<Option<Vec<f64>>>(),
-    ) else {
-        return Ok(RowRead::Empty);
-    };
-    if got.iter().any(|v| v.is_nan()) {
-        return Ok(RowRead::Empty);
-    }
-    match prev {
-        Some(prev) if time == prev => Ok(RowRead::Repeated),
-        Some(prev) if time < prev => {
-            Err(table.error(row.line, format!("time {time} goes back (previous {prev})")))
-        }
-        _ => Ok(RowRead::Values(time, got)),
+    ) {
+        (Some(time), Some(got)) => Ok(RowRead::Values(time, got)),
+        _ => Ok(RowRead::Empty),
     }
 }
 
-/// The rows' times and the values of `cols` ([`read_row`]), with the rows
-/// skipped without a value and with a repeated time counted.
+/// The rows of a table as read: times and the values of the columns
+/// asked for, in time order, and what was done to get there.
+struct Rows {
+    t: Vec<f64>,
+    values: Vec<Vec<f64>>,
+    /// Rows skipped without a value.
+    skipped: usize,
+    /// Rows skipped whose time repeats the one before.
+    repeated: usize,
+    /// Rows put in time order ([`super::order`]).
+    reordered: usize,
+}
+
+/// The rows' times and the values of `cols` ([`read_row`]) in time order
+/// ([`super::order::in_time_order`]), with the rows skipped without a
+/// value, put in order and with a repeated time counted.
 fn read_rows(
     table: &Table,
     ti: Option<usize>,
     cols: &[usize],
     rate: Option<f64>,
-) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize, usize), CsvError> {
+) -> Result<Rows, CsvError> {
     let mut t: Vec<f64> = Vec::new();
     let mut values = vec![Vec::new(); cols.len()];
-    let (mut skipped, mut repeated) = (0, 0);
+    let mut lines = Vec::new();
+    let mut skipped = 0;
     let time = ti.map(|k| (k, time_scale(&table.header[k])));
-    for (place, row) in table.rows.iter().enumerate() {
-        match read_row(table, row, place, (time, rate), cols, t.last().copied())? {
+    for row in 0..table.len() {
+        match read_row(table, row, row, (time, rate), cols)? {
             RowRead::Values(time, got) => {
                 t.push(time);
+                lines.push(table.line(row));
                 for (v, x) in values.iter_mut().zip(got) {
                     v.push(x);
                 }
             }
             RowRead::Empty => skipped += 1,
-            RowRead::Repeated => repeated += 1,
         }
     }
     if t.len() < 2 {
         return Err(table.error(0, "fewer than 2 rows with values"));
     }
-    Ok((t, values, skipped, repeated))
+    let order = super::order::in_time_order(&mut t, &mut values, &lines)
+        .map_err(|(line, problem)| table.error(line, problem))?;
+    Ok(Rows {
+        t,
+        values,
+        skipped,
+        repeated: order.repeated,
+        reordered: order.reordered,
+    })
 }
 
 /// Parses a recording from `text`, the contents of `path`.
@@ -1090,17 +1111,24 @@ mod tests {
         );
         assert_eq!(l2.tool, Some("Vernier Graphical Analysis"));
         assert_eq!(two.theta[1], 0.5 * 0.3f64.cos());
-        // A time that goes back is an error naming the line; one repeated
-        // is skipped and counted.
+        // A time that goes back a little is put in order, with its
+        // value, and counted; one repeated is skipped and counted.
         let back = "t,theta\n0,1\n0.1,2\n0.1,2\n0.05,3\n";
-        let e = parse_runs(
+        let runs = parse_runs(
             &Table::parse(Path::new("b.csv"), back).unwrap(),
             &ImportOptions::default(),
         )
-        .unwrap_err();
+        .unwrap();
+        let (rec, layout) = &runs[0];
+        assert_eq!(rec.t, [0.0, 0.05, 0.1]);
+        assert_eq!(rec.theta, [1.0, 3.0, 2.0]);
+        assert_eq!((layout.reordered, layout.repeated), (1, 1));
         assert!(
-            e.to_string().starts_with("b.csv:5: time 0.05 goes back"),
-            "{e}"
+            layout
+                .describe()
+                .contains("1 row out of time order put in order"),
+            "{}",
+            layout.describe()
         );
         let twice = "t,theta\n0,1\n0.1,2\n0.1,2\n0.2,3\n";
         let runs = parse_runs(

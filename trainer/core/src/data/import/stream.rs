@@ -5,7 +5,8 @@
 //! and the header (read as [`Table::parse`] reads a file); from it the
 //! columns are taken ([`super::read::stream_columns`]: an angle, a rate or
 //! not); each row is read as `import` reads it (a row without a value or
-//! with a repeated time skipped, a time that goes back an error). Every
+//! with a repeated time skipped, one out of time order put at its time
+//! among the rows held, [`super::order`]). Every
 //! [`BATCH`] rows the rows held are imported as one recording on the grid
 //! of the first time stamp ([`super::rollout_on_grid`]), and the grid's
 //! samples that lie more than a margin before the last row are given out:
@@ -22,9 +23,10 @@
 use anyhow::Result;
 
 use super::read::{Layout, RowRead, StreamColumns, read_row, stream_columns};
+use super::order::BACK_MAX_S;
 use super::{ImportOptions, Recording, rollout_on_grid, rough_period};
 use crate::data::SourceMeta;
-use crate::data::table::{Table, is_data, line_is_data};
+use crate::data::table::{Table, line_is_data};
 
 /// Rows read between imports.
 pub const BATCH: usize = 64;
@@ -56,8 +58,12 @@ pub struct Stream {
     pending: usize,
     /// Rows read in all (for the times of a file without a time column).
     rows: usize,
-    /// Rows skipped (no value, or a repeated time).
+    /// Rows skipped without a value.
     skipped: usize,
+    /// Rows skipped whose time repeats one held.
+    repeated: usize,
+    /// Rows put at their time among the rows held.
+    reordered: usize,
     /// The last source record of an import.
     source: Option<SourceMeta>,
 }
@@ -82,6 +88,8 @@ impl Stream {
             pending: 0,
             rows: 0,
             skipped: 0,
+            repeated: 0,
+            reordered: 0,
             source: None,
         }
     }
@@ -115,7 +123,7 @@ impl Stream {
     /// theta_dot])` with `t` from the first stamp.
     pub fn push(&mut self, text_line: &str) -> Result<Vec<(f64, [f64; 2])>> {
         self.lines += 1;
-        let Some(table) = &self.table else {
+        if self.table.is_none() {
             self.head.push_str(text_line);
             self.head.push('\n');
             // The head is parsed again only at a line that may be the
@@ -126,8 +134,11 @@ impl Stream {
                 Ok(Vec::new())
             };
         };
-        if let Some(row) = table.row(self.lines, text_line)? {
-            self.take(&row)?;
+        let line = self.lines;
+        if let Some(table) = &mut self.table
+            && table.push_line(line, text_line)?
+        {
+            self.take(0)?;
         }
         self.pending += 1;
         if self.pending >= BATCH {
@@ -148,49 +159,75 @@ impl Stream {
     /// The header and the first rows, once a data row has come.
     fn try_header(&mut self) -> Result<Vec<(f64, [f64; 2])>> {
         let table = Table::parse(&self.name, &self.head)?;
-        let Some(first) = table.rows.first() else {
-            return Ok(Vec::new());
-        };
-        if !is_data(&first.fields, table.separator) {
+        if table.is_empty() || !self.head.lines().any(line_is_data) {
             return Ok(Vec::new());
         }
         let columns = stream_columns(&table, &self.opts)?;
         self.rec.theta_dot = columns.rate.map(|_| Vec::new());
         self.columns = Some(columns);
-        let rows = table.rows.clone();
-        self.table = Some(Table {
-            rows: Vec::new(),
-            ..table
-        });
-        for row in &rows {
+        let rows = table.len();
+        self.table = Some(table);
+        for row in 0..rows {
             self.take(row)?;
         }
+        self.head = String::new();
         Ok(Vec::new())
     }
 
-    /// A row read into the recording, as `import` reads it ([`read_row`]).
-    fn take(&mut self, row: &crate::data::table::Row) -> Result<()> {
-        let (Some(table), Some(c)) = (&self.table, &self.columns) else {
+    /// The table's rows from `from` read into the recording, as `import`
+    /// reads them ([`read_row`]), then let go: a row out of time order is
+    /// put at its time among the rows held ([`super::order`]), a
+    /// repeated time skipped.
+    fn take(&mut self, from: usize) -> Result<()> {
+        let (Some(table), Some(c)) = (&mut self.table, &self.columns) else {
             return Ok(());
         };
-        let place = self.rows;
-        self.rows += 1;
         let cols: Vec<usize> = std::iter::once(c.angle.0)
             .chain(c.rate.map(|r| r.0))
             .collect();
-        let prev = self.rec.t.last().copied();
-        let RowRead::Values(time, got) =
-            read_row(table, row, place, (c.time, self.opts.rate), &cols, prev)?
-        else {
-            self.skipped += 1;
-            return Ok(());
-        };
-        self.origin.get_or_insert(time);
-        self.rec.t.push(time);
-        self.rec.theta.push(got[0] * c.angle.1);
-        if let (Some(v), Some(r), Some((_, s))) = (&mut self.rec.theta_dot, got.get(1), c.rate) {
-            v.push(r * s);
+        for row in from..table.len() {
+            let place = self.rows;
+            self.rows += 1;
+            let RowRead::Values(time, got) =
+                read_row(table, row, place, (c.time, self.opts.rate), &cols)?
+            else {
+                self.skipped += 1;
+                continue;
+            };
+            let theta = got[0] * c.angle.1;
+            let rate = got.get(1).zip(c.rate).map(|(r, (_, s))| r * s);
+            let at = self.rec.t.partition_point(|&t| t <= time);
+            let last = self.rec.t.last().copied();
+            if at > 0 && self.rec.t[at - 1] == time {
+                self.repeated += 1;
+                continue;
+            }
+            if let Some(last) = last
+                && time < last
+            {
+                let settled = self
+                    .origin
+                    .map_or(f64::NEG_INFINITY, |o| o + self.next as f64 * self.opts.dt);
+                if last - time > BACK_MAX_S || time <= settled {
+                    return Err(table
+                        .error(
+                            table.line(row),
+                            format!(
+                                "time {time} goes back from {last}, before the samples given out"
+                            ),
+                        )
+                        .into());
+                }
+                self.reordered += 1;
+            }
+            self.origin.get_or_insert(time);
+            self.rec.t.insert(at, time);
+            self.rec.theta.insert(at, theta);
+            if let (Some(v), Some(r)) = (&mut self.rec.theta_dot, rate) {
+                v.insert(at, r);
+            }
         }
+        table.retain_rows(|_| false);
         Ok(())
     }
 
@@ -211,7 +248,10 @@ impl Stream {
             }
         }
         let (rollout, source) = rollout_on_grid(&self.rec, 1, &self.opts, origin)?;
-        self.source = Some(source);
+        self.source = Some(SourceMeta {
+            reordered: self.reordered,
+            ..source
+        });
         let step = self
             .source
             .as_ref()
