@@ -13,6 +13,7 @@ use trainer_core::data::import::{self, ImportOptions};
 use trainer_core::data::lab::{LAB_G, LabSpec};
 use trainer_core::track::track_each;
 
+pub mod exports;
 pub mod synthetic;
 
 /// The workspace root.

@@ -37,6 +37,10 @@ pub const HEAD_LINES_MAX: usize = 10_000;
 /// ([`Table::is_blank`]); both read as no value.
 const BLANK: u64 = 0x7FF8_0000_B1A4_0001;
 
+/// Rows read before the room for the rest is reserved from the text's
+/// size and the bytes a row has taken so far.
+pub const RESERVE_AFTER: usize = 1024;
+
 /// A problem with a file, naming it and the line (1-based).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CsvError {
@@ -319,6 +323,8 @@ fn quoted(field: &str) -> String {
 /// from 1.
 struct Lines<R> {
     reader: R,
+    /// Bytes read so far.
+    bytes: u64,
     /// The next line's number.
     next: usize,
     /// A carriage return ended the line before: a LF first is its end.
@@ -330,6 +336,7 @@ impl<R: BufRead> Lines<R> {
     fn new(reader: R) -> Self {
         Lines {
             reader,
+            bytes: 0,
             next: 1,
             after_cr: false,
             buf: Vec::new(),
@@ -367,6 +374,7 @@ impl<R: BufRead> Lines<R> {
                 }
             }
             self.reader.consume(used);
+            self.bytes += used as u64;
             if self.buf.len() > LINE_BYTES_MAX {
                 return Err(CsvError::new(
                     path,
@@ -447,19 +455,31 @@ impl<R: Read> Read for Utf16ToUtf8<R> {
 impl Table {
     /// Parses `text` (the contents of `path`).
     pub fn parse(path: &Path, text: &str) -> Result<Table, CsvError> {
-        Table::from_lines(path, Lines::new(text.as_bytes()))
+        Table::from_lines(path, Lines::new(text.as_bytes()), Some(text.len() as u64))
     }
 
     /// Reads and parses the file at `path` in one pass.
     pub fn read(path: &Path) -> Result<Table, CsvError> {
         let file = std::fs::File::open(path)
             .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
-        Table::from_reader(path, file)
+        let size = file.metadata().ok().map(|m| m.len());
+        Table::from_sized_reader(path, file, size)
     }
 
     /// Reads a table from `reader` (the contents of `path`) in one pass:
     /// UTF-16 with its mark transcoded as it is read.
     pub fn from_reader(path: &Path, reader: impl Read) -> Result<Table, CsvError> {
+        Table::from_sized_reader(path, reader, None)
+    }
+
+    /// [`Table::from_reader`] of a text of `size` bytes where known: the
+    /// rows' room is reserved from it once a thousand rows are read
+    /// ([`RESERVE_AFTER`]), not doubled as they come.
+    pub fn from_sized_reader(
+        path: &Path,
+        reader: impl Read,
+        size: Option<u64>,
+    ) -> Result<Table, CsvError> {
         let mut reader = BufReader::with_capacity(256 * 1024, reader);
         let mark = reader
             .fill_buf()
@@ -479,9 +499,10 @@ impl Table {
                     out: Vec::new(),
                     at: 0,
                 };
-                Table::from_lines(path, Lines::new(BufReader::new(utf8)))
+                let size = size.map(|s| s / 2 * 3);
+                Table::from_lines(path, Lines::new(BufReader::new(utf8)), size)
             }
-            None => Table::from_lines(path, Lines::new(reader)),
+            None => Table::from_lines(path, Lines::new(reader), size),
         }
     }
 
@@ -493,7 +514,11 @@ impl Table {
     /// preamble. A file whose first data row follows no such line has no
     /// header: its columns are named `column 1`, `column 2`, ... and every
     /// line above is preamble (a logger's messages).
-    fn from_lines<R: BufRead>(path: &Path, mut lines: Lines<R>) -> Result<Table, CsvError> {
+    fn from_lines<R: BufRead>(
+        path: &Path,
+        mut lines: Lines<R>,
+        size: Option<u64>,
+    ) -> Result<Table, CsvError> {
         let unreadable =
             |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
         // The lines up to the first data row, held.
@@ -569,8 +594,17 @@ impl Table {
             table.push_line(*line, text)?;
         }
         drop(head);
+        let mut reserved = false;
         while let Some((line, text)) = lines.next_line(path)? {
             table.push_line(line, &text)?;
+            if !reserved && table.len() >= RESERVE_AFTER {
+                reserved = true;
+                if let Some(size) = size {
+                    let per_row = lines.bytes as f64 / table.len() as f64;
+                    let rest = size.saturating_sub(lines.bytes) as f64 / per_row;
+                    table.reserve((1.05 * rest) as usize + 16);
+                }
+            }
         }
         Ok(table)
     }
@@ -607,6 +641,12 @@ impl Table {
         }
         self.lines.push(u32::try_from(line).unwrap_or(u32::MAX));
         Ok(true)
+    }
+
+    /// Room for `more` rows.
+    fn reserve(&mut self, more: usize) {
+        self.columns.iter_mut().for_each(|c| c.reserve_exact(more));
+        self.lines.reserve_exact(more);
     }
 
     /// Rows kept.

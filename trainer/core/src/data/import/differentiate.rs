@@ -283,8 +283,12 @@ fn uniform(t: &[f64]) -> bool {
 /// crossings.
 pub fn rough_period(t: &[f64], theta: &[f64]) -> Option<f64> {
     let mut sorted = theta.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let centre = *sorted.get(sorted.len() / 2)?;
+    if sorted.is_empty() {
+        return None;
+    }
+    let mid = sorted.len() / 2;
+    let centre = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
+    drop(sorted);
     let band = 0.3 * theta.iter().map(|v| (v - centre).abs()).fold(0.0, f64::max);
     let mut flips = Vec::new();
     let mut side = 0i8;

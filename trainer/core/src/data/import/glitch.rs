@@ -136,10 +136,11 @@ fn threshold(residual: &[f64], i: usize) -> f64 {
     (K * quantile(&mut dev, 0.25) / 0.3186).max(FLOOR)
 }
 
-/// The `q` quantile of `v` (the sample at `q n`, rounded down), sorting it.
+/// The `q` quantile of `v` (the sample at `q n`, rounded down, of `v`
+/// sorted), selected in place.
 fn quantile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[((q * v.len() as f64) as usize).min(v.len() - 1)]
+    let at = ((q * v.len() as f64) as usize).min(v.len() - 1);
+    *v.select_nth_unstable_by(at, f64::total_cmp).1
 }
 
 /// Whether a sample next to `i` is dropped.

@@ -80,6 +80,8 @@ pub use stream::Stream;
 
 use crate::protocol::DT;
 
+use std::borrow::Cow;
+
 use anyhow::{Context, Result};
 
 use super::{Dataset, Rollout, Sidecar, SourceMeta};
@@ -211,8 +213,8 @@ pub fn to_rollout_with_source(
 
 /// [`to_rollout_with_source`] without the checks, on the grid
 /// `origin + start + k dt` (a stream's first stamp, for a part of it).
-pub(crate) fn rollout_on_grid(
-    rec: &Recording,
+pub(crate) fn rollout_on_grid<'a>(
+    rec: &'a Recording,
     id: u32,
     opts: &ImportOptions,
     origin: f64,
@@ -226,8 +228,14 @@ pub(crate) fn rollout_on_grid(
         .into_iter()
         .map(|r| {
             let glitch = glitches(&rec.t[r.clone()], &rec.theta[r.clone()]);
-            dropped += glitch.iter().filter(|g| **g).count();
-            let kept = |v: &[f64]| -> Vec<f64> {
+            let here = glitch.iter().filter(|g| **g).count();
+            dropped += here;
+            // The samples that are no glitch: the recording's own where
+            // none is (no copy of an hour's samples).
+            let kept = |v: &'a [f64]| -> Cow<'a, [f64]> {
+                if here == 0 {
+                    return Cow::Borrowed(&v[r.clone()]);
+                }
                 v[r.clone()]
                     .iter()
                     .zip(&glitch)
@@ -238,7 +246,11 @@ pub(crate) fn rollout_on_grid(
             let (t, theta) = (kept(&rec.t), kept(&rec.theta));
             let (theta, rate) = match &rec.theta_dot {
                 Some(rate) => (theta, kept(rate)),
-                None => differentiate::smooth_and_rate(&t, &theta, opts.smooth, step),
+                None => {
+                    let (theta, rate) =
+                        differentiate::smooth_and_rate(&t, &theta, opts.smooth, step);
+                    (Cow::Owned(theta), Cow::Owned(rate))
+                }
             };
             Part { t, theta, rate }
         })
@@ -322,7 +334,9 @@ pub fn read_recordings(
     let mut refused = Vec::new();
     // Each table let go once read (its numbers are the recording's again).
     for table in tables {
-        match parse_runs(&table, opts) {
+        let parsed = parse_runs(&table, opts);
+        drop(table);
+        match parsed {
             Ok(runs) => out.extend(runs.into_iter().flat_map(split_releases)),
             // Of an archive's tables, those without a recording are passed
             // over (a phyphox zip's metadata), and named if none has one.
@@ -345,20 +359,29 @@ pub fn read_recordings(
 /// else as it is.
 fn split_releases((rec, layout): (Recording, Layout)) -> Vec<(Recording, Layout)> {
     // Found on the samples that are no glitch, mapped back to the recording's.
-    let kept: Vec<usize> = glitches(&rec.t, &rec.theta)
-        .iter()
-        .enumerate()
-        .filter(|(_, g)| !**g)
-        .map(|(k, _)| k)
-        .collect();
-    let pick = |v: &[f64]| -> Vec<f64> { kept.iter().map(|&k| v[k]).collect() };
-    let Some(ranges) = releases(&pick(&rec.t), &pick(&rec.theta)) else {
+    let glitch = glitches(&rec.t, &rec.theta);
+    let ranges = if glitch.contains(&true) {
+        let kept: Vec<usize> = glitch
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| !**g)
+            .map(|(k, _)| k)
+            .collect();
+        let pick = |v: &[f64]| -> Vec<f64> { kept.iter().map(|&k| v[k]).collect() };
+        releases(&pick(&rec.t), &pick(&rec.theta)).map(|ranges| {
+            ranges
+                .into_iter()
+                .map(|r| kept[r.start]..kept[r.end - 1] + 1)
+                .collect::<Vec<_>>()
+        })
+    } else {
+        // No glitch: the recording's own samples, not a copy.
+        releases(&rec.t, &rec.theta)
+    };
+    drop(glitch);
+    let Some(ranges) = ranges else {
         return vec![(rec, layout)];
     };
-    let ranges: Vec<std::ops::Range<usize>> = ranges
-        .into_iter()
-        .map(|r| kept[r.start]..kept[r.end - 1] + 1)
-        .collect();
     let n = ranges.len();
     ranges
         .into_iter()
@@ -686,3 +709,4 @@ mod tests {
         assert_eq!(r.xs.len(), 12);
     }
 }
+

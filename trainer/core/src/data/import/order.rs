@@ -33,14 +33,13 @@ pub struct Order {
 
 /// Puts `t` and each of `values` (the same length) in time order and
 /// skips the rows whose time repeats the one before (see the module
-/// docs); `lines` are the rows' lines for errors, which are
+/// docs); `line` gives a row's line for errors, which are
 /// `(line, problem)`.
 pub fn in_time_order(
     t: &mut Vec<f64>,
     values: &mut [Vec<f64>],
-    lines: &[usize],
+    line: impl Fn(usize) -> usize,
 ) -> Result<Order, (usize, String)> {
-    let line = |k: usize| lines.get(k).copied().unwrap_or(0);
     let steps_back = t.windows(2).filter(|w| w[1] < w[0]).count();
     if t.len() > 2 && steps_back + 1 >= t.len() {
         return Err((
@@ -114,7 +113,7 @@ mod tests {
         let mut t = vec![0.0, 0.02, 0.04, 0.03, 0.06, 0.06, 0.08, 0.07, 0.1];
         let mut v = vec![(0..9).map(f64::from).collect::<Vec<_>>()];
         let lines: Vec<usize> = (2..11).collect();
-        let order = in_time_order(&mut t, &mut v, &lines).unwrap();
+        let order = in_time_order(&mut t, &mut v, |k| lines[k]).unwrap();
         assert_eq!(
             order,
             Order {
@@ -125,16 +124,16 @@ mod tests {
         assert_eq!(t, [0.0, 0.02, 0.03, 0.04, 0.06, 0.07, 0.08, 0.1]);
         assert_eq!(v[0], [0.0, 1.0, 3.0, 2.0, 4.0, 7.0, 6.0, 8.0]);
         let mut t = vec![30.0, 30.02, 0.0, 0.02];
-        let e = in_time_order(&mut t, &mut [], &[2, 3, 4, 5]).unwrap_err();
+        let e = in_time_order(&mut t, &mut [], |k| k + 2).unwrap_err();
         assert_eq!(e.0, 4);
         assert!(e.1.contains("clock reset"), "{}", e.1);
         let mut t: Vec<f64> = (0..100).rev().map(|k| f64::from(k) * 0.01).collect();
-        let e = in_time_order(&mut t, &mut [], &[]).unwrap_err();
+        let e = in_time_order(&mut t, &mut [], |_| 0).unwrap_err();
         assert!(e.1.contains("backwards throughout"), "{}", e.1);
         let mut t: Vec<f64> = (0..100)
             .map(|k| f64::from((k * 37) % 100) * 0.005)
             .collect();
-        let e = in_time_order(&mut t, &mut [], &[]).unwrap_err();
+        let e = in_time_order(&mut t, &mut [], |_| 0).unwrap_err();
         assert!(e.1.contains("scrambled"), "{}", e.1);
     }
 }

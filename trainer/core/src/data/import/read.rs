@@ -19,6 +19,7 @@
 //! counted. A file with none of these gets an error that names its
 //! columns, what each could be and the option to give ([`unrecognised`]).
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use crate::data::table::{CsvError, Table, listed};
@@ -493,7 +494,7 @@ pub fn parse_table_with_layout(
 /// The Phidget Spatial logger's rows, `[t, ax, ay, az, gx, gy, gz]`
 /// after its messages (which name the device), without a header: named,
 /// the rates in degrees per second as the device gives them.
-fn known_headerless(table: &Table) -> (Table, Option<&'static str>) {
+fn known_headerless(table: &Table) -> (Cow<'_, Table>, Option<&'static str>) {
     let phidget = !table.named
         && table.header.len() == 7
         && table
@@ -501,7 +502,7 @@ fn known_headerless(table: &Table) -> (Table, Option<&'static str>) {
             .iter()
             .any(|l| l.to_lowercase().contains("phidget"));
     if !phidget {
-        return (table.clone(), None);
+        return (Cow::Borrowed(table), None);
     }
     let mut named = table.clone();
     named.header = [
@@ -515,7 +516,7 @@ fn known_headerless(table: &Table) -> (Table, Option<&'static str>) {
     ]
     .map(String::from)
     .to_vec();
-    (named, Some("Phidget Spatial logger"))
+    (Cow::Owned(named), Some("Phidget Spatial logger"))
 }
 
 /// The run a header field is marked with: a prefix before a colon
@@ -536,7 +537,7 @@ fn run_of(field: &str) -> Option<String> {
 /// The table split by run where its columns are marked with two or more
 /// (a column marked with none goes with every run); else the table as it
 /// is. A run's rows are those with a value in one of its columns.
-fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
+fn split_runs(table: &Table) -> Vec<(Option<String>, Cow<'_, Table>)> {
     let marks: Vec<Option<String>> = table.header.iter().map(|h| run_of(h)).collect();
     let mut runs: Vec<String> = Vec::new();
     for m in marks.iter().flatten() {
@@ -545,7 +546,7 @@ fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
         }
     }
     if runs.len() < 2 {
-        return vec![(None, table.clone())];
+        return vec![(None, Cow::Borrowed(table))];
     }
     runs.into_iter()
         .map(|run| {
@@ -556,7 +557,7 @@ fn split_runs(table: &Table) -> Vec<(Option<String>, Table)> {
             let has_value = |r: usize| (0..cols.len()).any(|c| !sub.is_blank(r, c));
             let keep: Vec<bool> = (0..sub.len()).map(has_value).collect();
             sub.retain_rows(|r| keep[r]);
-            (Some(run), sub)
+            (Some(run), Cow::Owned(sub))
         })
         .collect()
 }
@@ -681,9 +682,12 @@ fn could_be(table: &Table, k: usize) -> String {
     if v.windows(2).all(|w| w[1] > w[0]) {
         return format!("increasing, the time?: --time-column {}", k + 1);
     }
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
     let mut sorted = v.clone();
-    sorted.sort_by(f64::total_cmp);
-    let (lo, mid, hi) = (sorted[0], sorted[v.len() / 2], sorted[v.len() - 1]);
+    let mid = *sorted.select_nth_unstable_by(v.len() / 2, f64::total_cmp).1;
+    drop(sorted);
     if hi - lo <= 1e-12 * hi.abs().max(1.0) {
         return "constant".into();
     }
@@ -745,10 +749,10 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     let recording = match holds {
         Holds::Angle { angle, rate } => {
             angle_layout(table, opts, angle, rate, &mut layout);
-            let theta: Vec<f64> = values[0]
-                .iter()
-                .map(|v| v * scale(layout.angle_unit.0))
-                .collect();
+            let mut values = values.into_iter();
+            let mut theta = values.next().unwrap_or_default();
+            let angle_scale = scale(layout.angle_unit.0);
+            theta.iter_mut().for_each(|v| *v *= angle_scale);
             let centre = (bare(&header(angle)) == TRACKER_ANGLE)
                 .then(|| crate::metrics::median(&mut theta.clone()))
                 .filter(|c| c.abs() > CENTRE_MAX);
@@ -763,7 +767,10 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
                 ));
             }
             let rate_scale = scale(layout.rate_unit.0);
-            let theta_dot = rate.map(|_| values[1].iter().map(|v| v * rate_scale).collect());
+            let theta_dot = rate.and_then(|_| values.next()).map(|mut v| {
+                v.iter_mut().for_each(|x| *x *= rate_scale);
+                v
+            });
             Recording {
                 t,
                 theta,
@@ -949,32 +956,39 @@ fn read_rows(
     cols: &[usize],
     rate: Option<f64>,
 ) -> Result<Rows, CsvError> {
-    let mut t: Vec<f64> = Vec::new();
-    let mut values = vec![Vec::new(); cols.len()];
-    let mut lines = Vec::new();
-    let mut skipped = 0;
+    let mut t: Vec<f64> = Vec::with_capacity(table.len());
+    let mut values: Vec<Vec<f64>> = (0..cols.len())
+        .map(|_| Vec::with_capacity(table.len()))
+        .collect();
+    // The rows skipped, to find a kept row's line again.
+    let mut skipped_rows = Vec::new();
     let time = ti.map(|k| (k, time_scale(&table.header[k])));
     for row in 0..table.len() {
         match read_row(table, row, row, (time, rate), cols)? {
             RowRead::Values(time, got) => {
                 t.push(time);
-                lines.push(table.line(row));
                 for (v, x) in values.iter_mut().zip(got) {
                     v.push(x);
                 }
             }
-            RowRead::Empty => skipped += 1,
+            RowRead::Empty => skipped_rows.push(row),
         }
     }
+    let line = |kept: usize| {
+        let row = skipped_rows
+            .iter()
+            .fold(kept, |row, &s| if s <= row { row + 1 } else { row });
+        table.line(row)
+    };
     if t.len() < 2 {
         return Err(table.error(0, "fewer than 2 rows with values"));
     }
-    let order = super::order::in_time_order(&mut t, &mut values, &lines)
+    let order = super::order::in_time_order(&mut t, &mut values, line)
         .map_err(|(line, problem)| table.error(line, problem))?;
     Ok(Rows {
         t,
         values,
-        skipped,
+        skipped: skipped_rows.len(),
         repeated: order.repeated,
         reordered: order.reordered,
     })

@@ -1,6 +1,7 @@
 //! The gaps in a recording's time stamps, and the resampling of the parts
 //! between them onto the model's grid by linear interpolation.
 
+use std::borrow::Cow;
 use std::ops::Range;
 
 use anyhow::Result;
@@ -10,8 +11,11 @@ use super::{ImportOptions, Recording};
 /// The median step between time stamps (0 with fewer than two).
 pub fn median_step(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_by(f64::total_cmp);
-    d.get(d.len() / 2).copied().unwrap_or(0.0)
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The largest step between time stamps (0 with fewer than two).
@@ -76,13 +80,13 @@ pub(super) fn split_at_gaps(rec: &Recording, step: f64, dt: f64) -> Result<Vec<R
 /// A part of a recording between gaps: its time stamps (glitches left
 /// out), and the angle (smoothed where the rate is derived) and the rate
 /// at them.
-pub(super) struct Part {
-    /// Times, s, increasing.
-    pub(super) t: Vec<f64>,
+pub(super) struct Part<'a> {
+    /// Times, s, increasing (the recording's own where none is dropped).
+    pub(super) t: Cow<'a, [f64]>,
     /// Angle, rad.
-    pub(super) theta: Vec<f64>,
+    pub(super) theta: Cow<'a, [f64]>,
     /// Rate, rad/s.
-    pub(super) rate: Vec<f64>,
+    pub(super) rate: Cow<'a, [f64]>,
 }
 
 /// The parts resampled on the model's grid.
@@ -102,7 +106,7 @@ pub(super) struct Grid {
 /// left out; an error when nothing is left after trimming or fewer than
 /// 2 samples.
 pub(super) fn onto_grid(
-    parts: &[Part],
+    parts: &[Part<'_>],
     (first, last): (f64, f64),
     opts: &ImportOptions,
 ) -> Result<Grid> {
