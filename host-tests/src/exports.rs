@@ -163,7 +163,11 @@ pub fn phyphox_pendulum(s: &Swing, rng: &mut ChaCha8Rng) -> String {
 
 /// Tracker: the track's name, then `t x y`, tab-separated; `to_file` maps
 /// the bob's position in metres about the pivot (y up) to the file's.
-pub fn tracker(s: &Swing, rng: &mut ChaCha8Rng, to_file: impl Fn(f64, f64) -> (f64, f64)) -> String {
+pub fn tracker(
+    s: &Swing,
+    rng: &mut ChaCha8Rng,
+    to_file: impl Fn(f64, f64) -> (f64, f64),
+) -> String {
     let mut text = String::from("mass_A\nt\tx\ty\n");
     for (t, x) in s.t.iter().zip(&s.x) {
         let (bx, by) = (s.length * x[0].sin(), -s.length * x[0].cos());
@@ -172,4 +176,3 @@ pub fn tracker(s: &Swing, rng: &mut ChaCha8Rng, to_file: impl Fn(f64, f64) -> (f
     }
     text
 }
-

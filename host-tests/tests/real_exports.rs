@@ -80,7 +80,9 @@ fn a_phones_stamps_that_step_back_are_put_in_order() {
 /// digits, a decimal comma, the minus sign U+2212 in the mantissa and
 /// the exponent (`6,442E−2`, `−1,234E0`).
 fn norwegian(v: f64) -> String {
-    format!("{v:.3E}").replace('.', ",").replace('-', "\u{2212}")
+    format!("{v:.3E}")
+        .replace('.', ",")
+        .replace('-', "\u{2212}")
 }
 
 /// Tracker's Export Data in a Norwegian locale: `t x y` with no
@@ -241,7 +243,10 @@ fn phyphoxs_own_file_imports_as_its_csv_export() {
         ("size=\"0\"", "gyr_time", t.clone()),
     ];
     let saved = saved_phyphox("Gyroscope (rotation rate)", &containers, input, export);
-    let p = file("Gyroscope rotation rate 2026-12-07 13-05-00.phyphox", saved.as_bytes());
+    let p = file(
+        "Gyroscope rotation rate 2026-12-07 13-05-00.phyphox",
+        saved.as_bytes(),
+    );
     let layouts = assert_within_2(&p, &[0.55]);
     assert_eq!(layouts[0].tool, Some("phyphox"));
     // Its CSV export: the set `Raw Data`, the numbers as `0.000000000E0`.
@@ -256,10 +261,12 @@ fn phyphoxs_own_file_imports_as_its_csv_export() {
     let from_file = import::import(&[p], &opts()).unwrap();
     assert_eq!(from_file.rollouts, from_csv.rollouts);
     // No buffer with values: the buffers named, at most 10 and how many more.
-    let empty: Vec<(&str, &str, Vec<f64>)> = ["a", "b", "c", "d", "e", "f", "g", "h", "i", "j", "k", "gyr_time"]
-        .iter()
-        .map(|n| ("size=\"0\"", *n, Vec::new()))
-        .collect();
+    let empty: Vec<(&str, &str, Vec<f64>)> = [
+        "a", "b", "c", "d", "e", "f", "g", "h", "i", "j", "k", "gyr_time",
+    ]
+    .iter()
+    .map(|n| ("size=\"0\"", *n, Vec::new()))
+    .collect();
     let saved = saved_phyphox("Gyroscope (rotation rate)", &empty, input, export);
     let e = import_error(&file("empty.phyphox", saved.as_bytes()));
     assert!(
@@ -305,14 +312,21 @@ fn phyphoxs_pendulum_file_imports_its_rotation_buffers() {
         ("size=\"500\"", "autocorrelation_t", lags),
         ("size=\"500\"", "autocorrelation", correlation),
         ("", "dt", vec![0.02]),
-        ("size=\"20\" static=\"true\"", "factors", (1..=20).map(f64::from).collect()),
+        (
+            "size=\"20\" static=\"true\"",
+            "factors",
+            (1..=20).map(f64::from).collect(),
+        ),
         ("size=\"1\"", "period", vec![period]),
         ("size=\"0\"", "frequencyhist", vec![1.0 / period; 3]),
         ("size=\"0\"", "relamplitude", vec![1.0, 0.99, 0.98]),
         ("", "length", vec![0.35]),
     ];
     let saved = saved_phyphox("Pendulum", &containers, input, export);
-    let layouts = assert_within_2(&file("Pendulum 2026-12-07 13-05-00.phyphox", saved.as_bytes()), &[0.35]);
+    let layouts = assert_within_2(
+        &file("Pendulum 2026-12-07 13-05-00.phyphox", saved.as_bytes()),
+        &[0.35],
+    );
     assert_eq!(layouts[0].file.rsplit(':').next(), Some("Raw Data"));
 }
 
@@ -328,6 +342,6 @@ fn a_zip_of_many_entries_gives_a_short_error() {
     }
     let bytes = zip.finish().unwrap().into_inner();
     let e = import_error(&file("many.zip", &bytes));
-    assert!(e.len() < 3000, "{} bytes: {}", e.len(), &e[..300]);
+    assert!(e.len() < 1000, "{} bytes: {}", e.len(), &e[..300]);
     assert!(e.contains("and 19990 more"), "{e}");
 }

@@ -392,6 +392,7 @@ fn add_source(v: &mut serde_json::Value, s: &SourceMeta) {
     v["source_largest_gap"] = s.largest_gap.into();
     v["interpolated"] = s.interpolated.into();
     v["glitches"] = s.glitches.into();
+    v["reordered"] = s.reordered.into();
     v["angle_from"] = s.angle_from.clone().into();
 }
 

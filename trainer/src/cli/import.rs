@@ -63,7 +63,7 @@ pub fn run(a: Args) -> Result<()> {
 /// How a recording was sampled, in words.
 fn sampling(s: &SourceMeta, dt: f64) -> String {
     format!(
-        "sampled every {:.4} s (median), largest interval {:.4} s, {} {dt} s, {} glitch{} dropped",
+        "sampled every {:.4} s (median), largest interval {:.4} s, {} {dt} s, {} glitch{} dropped{}",
         s.median_interval,
         s.largest_gap,
         if s.interpolated {
@@ -72,7 +72,12 @@ fn sampling(s: &SourceMeta, dt: f64) -> String {
             "not interpolated at"
         },
         s.glitches,
-        if s.glitches == 1 { "" } else { "es" }
+        if s.glitches == 1 { "" } else { "es" },
+        match s.reordered {
+            0 => String::new(),
+            1 => ", 1 row put in time order".into(),
+            n => format!(", {n} rows put in time order"),
+        }
     )
 }
 

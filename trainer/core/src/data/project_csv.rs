@@ -103,10 +103,7 @@ pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvErro
     }
     let mut out: Vec<Rollout> = Vec::new();
     if let Some((row, n)) = table.ragged() {
-        return Err(table.error(
-            table.line(row),
-            format!("expected 4 columns, found {n}"),
-        ));
+        return Err(table.error(table.line(row), format!("expected 4 columns, found {n}")));
     }
     for row in 0..table.len() {
         let n = table.line(row);

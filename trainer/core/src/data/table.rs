@@ -395,7 +395,10 @@ impl<R: BufRead> Lines<R> {
         }
         let line = self.next;
         self.next += 1;
-        Ok(Some((line, latin1_unless_utf8(std::mem::take(&mut self.buf)))))
+        Ok(Some((
+            line,
+            latin1_unless_utf8(std::mem::take(&mut self.buf)),
+        )))
     }
 }
 
@@ -752,7 +755,9 @@ impl Table {
             named: true,
             separator: b',',
             columns,
-            lines: (1..=rows).map(|r| u32::try_from(r + 1).unwrap_or(u32::MAX)).collect(),
+            lines: (1..=rows)
+                .map(|r| u32::try_from(r + 1).unwrap_or(u32::MAX))
+                .collect(),
             ragged: None,
         }
     }
@@ -770,10 +775,9 @@ impl Table {
                 self.line(row),
                 format!("{what} is {v}, not a finite number"),
             )),
-            None if self.is_blank(row, k) => Err(self.error(
-                self.line(row),
-                format!("missing {what} (column {})", k + 1),
-            )),
+            None if self.is_blank(row, k) => {
+                Err(self.error(self.line(row), format!("missing {what} (column {})", k + 1)))
+            }
             None => Err(self.error(
                 self.line(row),
                 format!("{what} is NaN, not a finite number"),
@@ -866,10 +870,7 @@ mod tests {
         assert_eq!(t.line(1), 5);
         assert_eq!(t.number(1, 1, "theta").unwrap(), 2.0);
         let e = t.number(1, 2, "rate").unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "a.tsv:5: missing rate (column 3)"
-        );
+        assert_eq!(e.to_string(), "a.tsv:5: missing rate (column 3)");
         assert_eq!(separator("a;b;c"), b';');
         assert_eq!(separator("a,b"), b',');
         assert_eq!(separator("single"), b',');
@@ -911,14 +912,18 @@ mod tests {
     fn utf_16_old_mac_line_ends_and_a_long_cell() {
         let text = "Time (s)\tAngle (°)\r\n0\t0.3\r\n0.02\t0.29\r\n";
         for le in [true, false] {
-            let mut bytes = if le { vec![0xFF, 0xFE] } else { vec![0xFE, 0xFF] };
-            bytes.extend(text.encode_utf16().flat_map(|u| {
-                if le {
-                    u.to_le_bytes()
-                } else {
-                    u.to_be_bytes()
-                }
-            }));
+            let mut bytes = if le {
+                vec![0xFF, 0xFE]
+            } else {
+                vec![0xFE, 0xFF]
+            };
+            bytes.extend(
+                text.encode_utf16().flat_map(
+                    |u| {
+                        if le { u.to_le_bytes() } else { u.to_be_bytes() }
+                    },
+                ),
+            );
             let t = Table::from_reader(Path::new("u.txt"), bytes.as_slice()).unwrap();
             assert_eq!(t.header, ["Time (s)", "Angle (°)"]);
             assert_eq!(t.len(), 2);
@@ -1054,7 +1059,10 @@ mod tests {
     fn a_list_names_ten_then_how_many_more() {
         let items: Vec<String> = (1..=25).map(|k| format!("e{k}")).collect();
         let text = listed(&items, ", ");
-        assert!(text.starts_with("e1, e2,") && text.ends_with("e10, and 15 more"), "{text}");
+        assert!(
+            text.starts_with("e1, e2,") && text.ends_with("e10, and 15 more"),
+            "{text}"
+        );
         assert_eq!(listed(&items[..2], "; "), "e1; e2");
     }
 }

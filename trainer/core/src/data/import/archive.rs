@@ -139,9 +139,8 @@ fn zip_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
 /// A workbook that is a zip (`.xlsx`, `.ods`): each entry's stated size
 /// within the limits, before `calamine` inflates its sheets.
 fn check_zip_entries(path: &Path) -> Result<(), CsvError> {
-    let bad = |e: &dyn std::fmt::Display| {
-        CsvError::new(path, 0, format!("unreadable workbook: {e}"))
-    };
+    let bad =
+        |e: &dyn std::fmt::Display| CsvError::new(path, 0, format!("unreadable workbook: {e}"));
     let file = std::fs::File::open(path)
         .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| bad(&e))?;
@@ -210,7 +209,8 @@ mod tests {
                 .compression_level(Some(1))
                 .large_file(true);
             zip.start_file("Raw Data.csv", options).unwrap();
-            zip.write_all(b"\"Time (s)\",\"Gyroscope x (rad/s)\"\n").unwrap();
+            zip.write_all(b"\"Time (s)\",\"Gyroscope x (rad/s)\"\n")
+                .unwrap();
             let zeros = vec![b' '; 1 << 20];
             for _ in 0..1024 {
                 zip.write_all(&zeros).unwrap();

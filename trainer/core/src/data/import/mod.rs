@@ -36,8 +36,11 @@
 //! look like the wrong unit (spanning over two turns, or under
 //! [`MIN_SPAN_DEGREES`] read in degrees).
 //!
-//! Where each piece lives: reading the two formats and naming the columns
-//! in `read` ([`parse`], [`parse_table`]); the checks on what is read in
+//! Where each piece lives: a file's tables (a zip's CSVs, read within
+//! inflate limits; a workbook's sheets) in `archive` ([`read_tables`]),
+//! phyphox's own `.phyphox` file's in `phyphox`; reading the two formats
+//! and naming the columns in `read` ([`parse`], [`parse_table`]); time
+//! stamps that step back put in order in `order` ([`in_time_order`]); the checks on what is read in
 //! `checks` ([`check_recording`], [`MIN_SPAN_DEGREES`],
 //! [`MIN_SPAN_RADIANS`]); the differentiators and the window they take
 //! from the swing's period in `differentiate` ([`differentiate()`],
@@ -340,15 +343,26 @@ pub fn read_recordings(
             Ok(runs) => out.extend(runs.into_iter().flat_map(split_releases)),
             // Of an archive's tables, those without a recording are passed
             // over (a phyphox zip's metadata), and named if none has one.
-            Err(e) if many => refused.push(e.to_string()),
+            Err(e) if many => refused.push(e),
             Err(e) => return Err(e.into()),
         }
     }
     anyhow::ensure!(
         !out.is_empty(),
-        "{}: no table holds a recording: {}",
+        "{}: no table holds a recording ({}); the first: {}",
         path.display(),
-        crate::data::table::listed(&refused, "; ")
+        crate::data::table::listed(
+            &refused
+                .iter()
+                .map(|e| {
+                    let name = e.path.display().to_string();
+                    let archive = format!("{}:", path.display());
+                    name.strip_prefix(&archive).unwrap_or(&name).to_string()
+                })
+                .collect::<Vec<_>>(),
+            ", "
+        ),
+        refused.first().map(ToString::to_string).unwrap_or_default()
     );
     Ok(out)
 }
@@ -452,7 +466,10 @@ mod tests {
             assert_eq!(x[1], 2.0);
         }
         let e = parse(Path::new("p.csv"), "t,theta\n0,1\n5,2\n1,3\n", &opts).unwrap_err();
-        assert!(e.to_string().contains("p.csv:4") && e.to_string().contains("clock reset"), "{e}");
+        assert!(
+            e.to_string().contains("p.csv:4") && e.to_string().contains("clock reset"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -709,4 +726,3 @@ mod tests {
         assert_eq!(r.xs.len(), 12);
     }
 }
-

@@ -9,12 +9,17 @@
 //! back of over [`BACK_MAX_S`] (a clock reset, two recordings joined: an
 //! order would interleave them), and stamps out of order in over
 //! [`SCRAMBLED_SHARE`] of the steps (wholly scrambled), or back at
-//! every step (running backwards throughout).
+//! [`BACKWARDS_SHARE`] of them (running backwards throughout).
 
 /// Longest step back put in order, s: a sensor's event delivered late is
 /// a step or a few behind (10 ms in the phyphox export); a step back of
 /// a second or more is a clock reset or two recordings in one file.
 pub const BACK_MAX_S: f64 = 1.0;
+
+/// Share of steps that go back from which a recording runs backwards
+/// throughout (written in reverse, a few of its own stamps out of order
+/// as a phone's are).
+pub const BACKWARDS_SHARE: f64 = 0.9;
 
 /// Largest share of steps that go back put in order: 12 in 2,250 (0.5%)
 /// in the phyphox export; a random order has about half its steps go
@@ -41,7 +46,7 @@ pub fn in_time_order(
     line: impl Fn(usize) -> usize,
 ) -> Result<Order, (usize, String)> {
     let steps_back = t.windows(2).filter(|w| w[1] < w[0]).count();
-    if t.len() > 2 && steps_back + 1 >= t.len() {
+    if t.len() > 2 && steps_back as f64 >= BACKWARDS_SHARE * (t.len() - 1) as f64 {
         return Err((
             0,
             "the time stamps run backwards throughout: not a recording in time order".into(),

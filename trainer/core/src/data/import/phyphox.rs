@@ -56,7 +56,11 @@ fn attribute(e: &BytesStart<'_>, key: &str) -> Option<String> {
     e.attributes()
         .flatten()
         .find(|a| a.key.0 == key)
-        .and_then(|a| a.normalized_value(quick_xml::XmlVersion::default()).ok().map(|v| v.into_owned()))
+        .and_then(|a| {
+            a.normalized_value(quick_xml::XmlVersion::default())
+                .ok()
+                .map(|v| v.into_owned())
+        })
 }
 
 /// A buffer's `init` values as numbers (one not a number as NaN, as the
@@ -72,9 +76,8 @@ fn values(init: &str) -> Vec<f64> {
 
 /// Reads the buffers and the export of the file at `path`.
 fn read(path: &Path) -> Result<Saved, CsvError> {
-    let bad = |e: &dyn std::fmt::Display| {
-        CsvError::new(path, 0, format!("unreadable phyphox file: {e}"))
-    };
+    let bad =
+        |e: &dyn std::fmt::Display| CsvError::new(path, 0, format!("unreadable phyphox file: {e}"));
     let file = std::fs::File::open(path)
         .map_err(|e| CsvError::new(path, 0, format!("cannot read: {e}")))?;
     let mut reader = Reader::from_reader(BufReader::new(file));

@@ -684,7 +684,9 @@ fn could_be(table: &Table, k: usize) -> String {
     }
     let (lo, hi) = v
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
     let mut sorted = v.clone();
     let mid = *sorted.select_nth_unstable_by(v.len() / 2, f64::total_cmp).1;
     drop(sorted);

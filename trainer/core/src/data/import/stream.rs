@@ -22,8 +22,8 @@
 
 use anyhow::Result;
 
-use super::read::{Layout, RowRead, StreamColumns, read_row, stream_columns};
 use super::order::BACK_MAX_S;
+use super::read::{Layout, RowRead, StreamColumns, read_row, stream_columns};
 use super::{ImportOptions, Recording, rollout_on_grid, rough_period};
 use crate::data::SourceMeta;
 use crate::data::table::{Table, line_is_data};
