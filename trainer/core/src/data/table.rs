@@ -5,7 +5,7 @@
 //!
 //! The file is read in one pass, a line at a time ([`Table::from_reader`]):
 //! the lines before the first data row are held to find the header
-//! (at most [`HEAD_LINES_MAX`]), and each row after it is kept as its
+//! (at most [`HEAD_BYTES_MAX`] of them), and each row after it is kept as its
 //! numbers, not its text, column by column (8 bytes a field and 4 for its
 //! line), so the memory a table takes grows with its rows' numbers alone.
 //! A line over [`LINE_BYTES_MAX`] is an error.
@@ -27,10 +27,11 @@ use std::path::{Path, PathBuf};
 /// binary) is refused before it fills memory.
 pub const LINE_BYTES_MAX: usize = 16 << 20;
 
-/// Most non-blank lines held before the first data row: a logger's
-/// messages or a tool's preamble run to tens of lines; a file with no
-/// data row in its first 10,000 is not a table of a recording.
-pub const HEAD_LINES_MAX: usize = 10_000;
+/// Most bytes of lines held before the first data row (16 MiB): a
+/// logger's messages or a tool's preamble run to tens of lines (a live
+/// logger's, thousands, well under a megabyte); a file with no data row
+/// in its first 16 MiB is not a table of a recording.
+pub const HEAD_BYTES_MAX: usize = 16 << 20;
 
 /// The bits of a field that is empty or absent: a NaN with a payload of
 /// its own, told apart from a `NaN` written in the file
@@ -526,6 +527,7 @@ impl Table {
             |line: usize, e: csv::Error| CsvError::new(path, line, format!("unreadable: {e}"));
         // The lines up to the first data row, held.
         let mut head: Vec<(usize, String)> = Vec::new();
+        let mut head_bytes = 0;
         let mut first_data = None;
         while let Some((line, mut text)) = lines.next_line(path)? {
             if line == 1 && text.starts_with('\u{feff}') {
@@ -536,6 +538,7 @@ impl Table {
             }
             let sep = separator(&text);
             let f = fields(&text, sep).map_err(|e| unreadable(line, e))?;
+            head_bytes += text.len();
             head.push((line, text));
             if let Some(f) = f
                 && is_data(&f)
@@ -552,12 +555,14 @@ impl Table {
                 first_data = Some((k, sep, f.len()));
                 break;
             }
-            if head.len() >= HEAD_LINES_MAX {
+            if head_bytes > HEAD_BYTES_MAX {
                 return Err(CsvError::new(
                     path,
                     0,
                     format!(
-                        "no row of numbers in its first {HEAD_LINES_MAX} lines: not a table of a recording"
+                        "no row of numbers in its first {} MiB ({} lines): not a table of a recording",
+                        HEAD_BYTES_MAX >> 20,
+                        head.len()
                     ),
                 ));
             }
@@ -946,19 +951,30 @@ mod tests {
     }
 
     /// One endless line (a binary, a file of one line) is refused at
-    /// [`LINE_BYTES_MAX`], and a text with no row of numbers in its first
-    /// [`HEAD_LINES_MAX`] lines at that, without holding the rest.
+    /// [`LINE_BYTES_MAX`], and endless text with no row of numbers at
+    /// [`HEAD_BYTES_MAX`], without reading the rest.
     #[test]
     fn an_endless_line_and_an_endless_preamble_are_refused() {
         let endless = std::io::repeat(b'x').take(LINE_BYTES_MAX as u64 + 10);
         let e = Table::from_reader(Path::new("b.bin"), endless).unwrap_err();
         assert!(e.to_string().contains("a line over 16 MiB"), "{e}");
-        let mut text = String::new();
-        for _ in 0..HEAD_LINES_MAX + 5 {
-            text.push_str("words, not numbers\n");
+        /// "words\n" without end.
+        struct Words(usize);
+        impl Read for Words {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                for b in buf.iter_mut() {
+                    *b = b"words\n"[self.0 % 6];
+                    self.0 += 1;
+                }
+                Ok(buf.len())
+            }
         }
-        let e = Table::parse(Path::new("w.txt"), &text).unwrap_err();
-        assert!(e.to_string().contains("no row of numbers"), "{e}");
+        let e = Table::from_reader(Path::new("w.txt"), Words(0)).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("no row of numbers in its first 16 MiB"),
+            "{e}"
+        );
     }
 
     /// Columns aligned by runs of spaces are read as columns.

@@ -125,13 +125,13 @@ fn zip_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
         if let Some(why) = too_large(entry.size(), compressed) {
             return Err(CsvError::new(&named, 0, why));
         }
-        let limit = entry.size().max(1).min(inflate_limit(compressed));
+        let size = entry.size();
         let bounded = Bounded {
             inner: entry,
-            limit,
+            limit: size.max(1).min(inflate_limit(compressed)),
             read: 0,
         };
-        tables.push(Table::from_reader(&named, bounded)?);
+        tables.push(Table::from_sized_reader(&named, bounded, Some(size))?);
     }
     Ok(tables)
 }
@@ -158,26 +158,54 @@ fn check_zip_entries(path: &Path) -> Result<(), CsvError> {
     Ok(())
 }
 
-/// Each sheet of a workbook with rows, its cells as numbers.
+/// Each sheet of a workbook with rows, read as a table a row at a time
+/// (each row as a tab-separated line, not the sheet as one text).
 fn sheet_tables(path: &Path) -> Result<Vec<Table>, CsvError> {
     let mut book = open_workbook_auto(path)
         .map_err(|e| CsvError::new(path, 0, format!("unreadable workbook: {e}")))?;
     let mut tables = Vec::new();
     for (name, range) in book.worksheets() {
-        let text: String = range
-            .rows()
-            .map(|row| {
-                let cells: Vec<String> = row.iter().map(cell).collect();
-                cells.join("\t") + "\n"
-            })
-            .collect();
-        if text.trim().is_empty() {
+        if range
+            .used_cells()
+            .all(|(_, _, c)| cell(c).trim().is_empty())
+        {
             continue;
         }
         let named = PathBuf::from(format!("{}:{name}", path.display()));
-        tables.push(Table::parse(&named, &text)?);
+        let lines = SheetLines {
+            rows: range.rows(),
+            line: Vec::new(),
+            at: 0,
+        };
+        tables.push(Table::from_reader(&named, lines)?);
     }
     Ok(tables)
+}
+
+/// A sheet's rows as text, a tab-separated line a row, made as they are
+/// read.
+struct SheetLines<'a> {
+    rows: calamine::Rows<'a, Data>,
+    /// The line being given out, and how much of it is.
+    line: Vec<u8>,
+    at: usize,
+}
+
+impl Read for SheetLines<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.at >= self.line.len() {
+            let Some(row) = self.rows.next() else {
+                return Ok(0);
+            };
+            let cells: Vec<String> = row.iter().map(cell).collect();
+            self.line = (cells.join("\t") + "\n").into_bytes();
+            self.at = 0;
+        }
+        let n = buf.len().min(self.line.len() - self.at);
+        buf[..n].copy_from_slice(&self.line[self.at..self.at + n]);
+        self.at += n;
+        Ok(n)
+    }
 }
 
 /// A cell as text: a number as Rust writes it (a point, no rounding).

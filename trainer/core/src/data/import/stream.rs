@@ -58,7 +58,7 @@ pub struct Stream {
     pending: usize,
     /// Rows read in all (for the times of a file without a time column).
     rows: usize,
-    /// Rows skipped without a value.
+    /// Rows skipped without a value, or too late to place.
     skipped: usize,
     /// Rows skipped whose time repeats one held.
     repeated: usize,
@@ -208,15 +208,22 @@ impl Stream {
                 let settled = self
                     .origin
                     .map_or(f64::NEG_INFINITY, |o| o + self.next as f64 * self.opts.dt);
-                if last - time > BACK_MAX_S || time <= settled {
+                if last - time > BACK_MAX_S {
                     return Err(table
                         .error(
                             table.line(row),
                             format!(
-                                "time {time} goes back from {last}, before the samples given out"
+                                "time {time} is {:.3} s before the row above's {last}: a clock reset or two recordings in one input?",
+                                last - time
                             ),
                         )
                         .into());
+                }
+                if time <= settled {
+                    // Before a sample already given out: too late to
+                    // place, skipped and counted.
+                    self.skipped += 1;
+                    continue;
                 }
                 self.reordered += 1;
             }
