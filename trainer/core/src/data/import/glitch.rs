@@ -102,16 +102,26 @@ fn residual(t: &[f64], theta: &[f64], dropped: &[bool], i: usize) -> f64 {
         return f64::NAN;
     }
     let kept = |k: &usize| !dropped[*k];
-    let left: Vec<usize> = (0..i).rev().filter(kept).take(FIT).collect();
-    let right: Vec<usize> = (i + 1..theta.len()).filter(kept).take(FIT).collect();
-    if left.len() < FIT || right.len() < FIT {
+    // The neighbours in time order, then the sample itself (on the
+    // stack: this runs for every sample of an hour's recording).
+    let mut at = [0usize; 2 * FIT + 1];
+    let mut n = 0;
+    for k in (0..i).rev().filter(kept).take(FIT) {
+        at[FIT - 1 - n] = k;
+        n += 1;
+    }
+    if n < FIT {
         return f64::NAN;
     }
-    // The neighbours in time order, then the sample itself.
-    let mut at: Vec<usize> = left.into_iter().rev().collect();
-    at.extend(right);
-    at.push(i);
-    let values: Vec<f64> = at.iter().map(|&k| theta[k]).collect();
+    for k in (i + 1..theta.len()).filter(kept).take(FIT) {
+        at[n] = k;
+        n += 1;
+    }
+    if n < 2 * FIT {
+        return f64::NAN;
+    }
+    at[2 * FIT] = i;
+    let values = at.map(|k| theta[k]);
     let m = at.len() - 1;
     let (fit, _) = quadratic_at(|k| t[at[k]], &values, 0, m - 1, m);
     theta[i] - fit
@@ -127,13 +137,20 @@ fn residual(t: &[f64], theta: &[f64], dropped: &[bool], i: usize) -> f64 {
 /// 1.2 times its amplitude either way.
 fn threshold(residual: &[f64], i: usize) -> f64 {
     let window = &residual[i.saturating_sub(SPREAD)..(i + SPREAD + 1).min(residual.len())];
-    let mut r: Vec<f64> = window.iter().copied().filter(|v| v.is_finite()).collect();
-    if r.is_empty() {
+    // On the stack: this runs for every sample of an hour's recording.
+    let mut buf = [0.0; 2 * SPREAD + 1];
+    let mut n = 0;
+    for v in window.iter().filter(|v| v.is_finite()) {
+        buf[n] = *v;
+        n += 1;
+    }
+    if n == 0 {
         return FLOOR;
     }
-    let centre = quantile(&mut r, 0.5);
-    let mut dev: Vec<f64> = r.iter().map(|v| (v - centre).abs()).collect();
-    (K * quantile(&mut dev, 0.25) / 0.3186).max(FLOOR)
+    let r = &mut buf[..n];
+    let centre = quantile(r, 0.5);
+    r.iter_mut().for_each(|v| *v = (*v - centre).abs());
+    (K * quantile(r, 0.25) / 0.3186).max(FLOOR)
 }
 
 /// The `q` quantile of `v` (the sample at `q n`, rounded down, of `v`
