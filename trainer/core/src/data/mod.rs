@@ -20,8 +20,10 @@ pub mod drawn;
 pub mod generate;
 pub mod import;
 pub mod lab;
+pub mod number;
 pub mod project_csv;
 pub mod table;
+pub mod text;
 
 pub use generate::{
     Physics, test_set, test_set_with, training_set, training_set_with, uniform_lengths,

@@ -20,12 +20,11 @@
 
 use std::fmt;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
 
-/// Longest line read, bytes (16 MiB): a header of thousands of columns
-/// fits many times over; a file of one endless line (no table, or a
-/// binary) is refused before it fills memory.
-pub const LINE_BYTES_MAX: usize = 16 << 20;
+pub use super::number::number;
+pub use super::text::{LINE_BYTES_MAX, decode};
+use super::text::{Lines, Utf16ToUtf8};
+use std::path::{Path, PathBuf};
 
 /// Most bytes of lines held before the first data row (16 MiB): a
 /// logger's messages or a tool's preamble run to tens of lines (a live
@@ -189,59 +188,6 @@ fn csv_fields(inner: &str, sep: u8) -> Result<Option<Vec<String>>, csv::Error> {
         .then(|| record.iter().map(str::to_string).collect()))
 }
 
-/// Whether `c` is a minus sign as locales write one: U+2212 (minus),
-/// U+2012 (figure dash), U+2013 (en dash), U+FE63 (small hyphen-minus),
-/// U+FF0D (full-width hyphen-minus).
-fn is_minus_like(c: char) -> bool {
-    matches!(
-        c,
-        '\u{2212}' | '\u{2012}' | '\u{2013}' | '\u{FE63}' | '\u{FF0D}'
-    )
-}
-
-/// Whether `c` groups a number's digits: a no-break space (U+00A0), a
-/// thin space (U+2009), a narrow no-break space (U+202F), an apostrophe
-/// (Swiss `1'234`).
-fn is_group_separator(c: char) -> bool {
-    matches!(c, '\u{A0}' | '\u{2009}' | '\u{202F}' | '\'')
-}
-
-/// A field as a number: the one number reader of every layout and of
-/// `--follow`.
-///
-/// Read as Rust reads a float after these forms are made plain: a minus
-/// sign as locales write it ([`is_minus_like`]) in the mantissa or the
-/// exponent (`6,442E−2`); digit groups set off by a no-break, thin or
-/// narrow space or an apostrophe (`1 234,5`); a decimal comma where a
-/// field has one comma and no point (`0,25`; a comma-separated file
-/// quotes such a field); where a field has both, the one written last is
-/// the decimal mark and the other groups digits (`1.234,5`, `1,234.5`).
-/// `+` before a number or its exponent, `e` or `E`, `NaN` (padding, read
-/// as NaN) and `inf` are taken as Rust takes them. `None` where the field
-/// is text.
-pub fn number(field: &str) -> Option<f64> {
-    let field = field.trim();
-    if let Ok(v) = field.parse::<f64>() {
-        return Some(v);
-    }
-    let mut plain = String::with_capacity(field.len());
-    for c in field.chars() {
-        if is_minus_like(c) {
-            plain.push('-');
-        } else if !is_group_separator(c) {
-            plain.push(c);
-        }
-    }
-    let (commas, points) = (plain.matches(',').count(), plain.matches('.').count());
-    let plain = match (plain.rfind(','), plain.rfind('.')) {
-        (Some(_), None) if commas == 1 => plain.replacen(',', ".", 1),
-        (Some(c), Some(p)) if c > p && commas == 1 => plain.replace('.', "").replacen(',', ".", 1),
-        (Some(c), Some(p)) if p > c && points == 1 => plain.replace(',', ""),
-        _ => plain,
-    };
-    plain.parse().ok()
-}
-
 /// The finite numbers among `fields`, where each is a number, `NaN` or
 /// empty (`None` where one is text).
 fn numbers_in(fields: &[String]) -> Option<usize> {
@@ -278,181 +224,11 @@ fn is_partial_data(fields: &[String]) -> bool {
     numbers_in(fields).is_some_and(|n| n >= 1)
 }
 
-/// Bytes as text: UTF-16 with its mark, UTF-8, else Latin-1 (a Windows
-/// tool's `°`).
-pub fn decode(bytes: Vec<u8>) -> String {
-    match bytes.get(..2) {
-        Some([0xFF, 0xFE]) => return utf16(bytes.get(2..).unwrap_or_default(), true),
-        Some([0xFE, 0xFF]) => return utf16(bytes.get(2..).unwrap_or_default(), false),
-        _ => {}
-    }
-    latin1_unless_utf8(bytes)
-}
-
-/// UTF-16 code units (`le`: little-endian) as text, an unpaired half
-/// replaced.
-fn utf16(bytes: &[u8], le: bool) -> String {
-    let units = bytes.chunks_exact(2).map(|c| {
-        let pair = [c[0], c[1]];
-        if le {
-            u16::from_le_bytes(pair)
-        } else {
-            u16::from_be_bytes(pair)
-        }
-    });
-    char::decode_utf16(units)
-        .map(|c| c.unwrap_or(char::REPLACEMENT_CHARACTER))
-        .collect()
-}
-
-/// Bytes as UTF-8 where they are, else as Latin-1.
-fn latin1_unless_utf8(bytes: Vec<u8>) -> String {
-    String::from_utf8(bytes)
-        .unwrap_or_else(|e| e.into_bytes().iter().map(|&b| char::from(b)).collect())
-}
-
 /// A field as an error quotes it: at most 40 characters.
 fn quoted(field: &str) -> String {
     match field.char_indices().nth(40) {
         Some((at, _)) => format!("{:?}...", &field[..at]),
         None => format!("{field:?}"),
-    }
-}
-
-/// The lines of a text, one at a time: split at LF, CRLF or a carriage
-/// return alone, each decoded on its own (UTF-8, else Latin-1), numbered
-/// from 1.
-struct Lines<R> {
-    reader: R,
-    /// Bytes read so far.
-    bytes: u64,
-    /// The next line's number.
-    next: usize,
-    /// A carriage return ended the line before: a LF first is its end.
-    after_cr: bool,
-    buf: Vec<u8>,
-}
-
-impl<R: BufRead> Lines<R> {
-    fn new(reader: R) -> Self {
-        Lines {
-            reader,
-            bytes: 0,
-            next: 1,
-            after_cr: false,
-            buf: Vec::new(),
-        }
-    }
-
-    /// The next line and its number; `None` at the end.
-    fn next_line(&mut self, path: &Path) -> Result<Option<(usize, String)>, CsvError> {
-        let unreadable = |e: std::io::Error| CsvError::new(path, 0, format!("cannot read: {e}"));
-        self.buf.clear();
-        let mut ended = false;
-        let mut any = false;
-        while !ended {
-            let chunk = self.reader.fill_buf().map_err(unreadable)?;
-            if chunk.is_empty() {
-                break;
-            }
-            any = true;
-            let mut used = 0;
-            if self.after_cr && chunk.first() == Some(&b'\n') {
-                used = 1;
-            }
-            self.after_cr = false;
-            let rest = chunk.get(used..).unwrap_or_default();
-            match rest.iter().position(|&b| b == b'\n' || b == b'\r') {
-                Some(at) => {
-                    self.buf.extend_from_slice(&rest[..at]);
-                    self.after_cr = rest[at] == b'\r';
-                    used += at + 1;
-                    ended = true;
-                }
-                None => {
-                    self.buf.extend_from_slice(rest);
-                    used += rest.len();
-                }
-            }
-            self.reader.consume(used);
-            self.bytes += used as u64;
-            if self.buf.len() > LINE_BYTES_MAX {
-                return Err(CsvError::new(
-                    path,
-                    self.next,
-                    format!(
-                        "a line over {} MiB: not a table of numbers",
-                        LINE_BYTES_MAX >> 20
-                    ),
-                ));
-            }
-        }
-        if !ended && self.buf.is_empty() && !any {
-            return Ok(None);
-        }
-        if !ended && self.buf.is_empty() {
-            // A lone LF after a CR at the very end.
-            return Ok(None);
-        }
-        let line = self.next;
-        self.next += 1;
-        Ok(Some((
-            line,
-            latin1_unless_utf8(std::mem::take(&mut self.buf)),
-        )))
-    }
-}
-
-/// A reader of UTF-16 (`le`: little-endian) that gives UTF-8, a chunk at
-/// a time (Excel's "Unicode text" read in one pass).
-struct Utf16ToUtf8<R> {
-    inner: R,
-    le: bool,
-    /// A byte or a high surrogate left from the chunk before.
-    carry: Vec<u8>,
-    out: Vec<u8>,
-    at: usize,
-}
-
-impl<R: Read> Read for Utf16ToUtf8<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        while self.at >= self.out.len() {
-            let mut raw = std::mem::take(&mut self.carry);
-            let have = raw.len();
-            raw.resize(have + 64 * 1024, 0);
-            let n = self.inner.read(&mut raw[have..])?;
-            raw.truncate(have + n);
-            if raw.is_empty() {
-                return Ok(0);
-            }
-            let mut whole = raw.len() / 2 * 2;
-            if n > 0 {
-                // Keep a high surrogate for the next chunk.
-                if whole >= 2 {
-                    let last = [raw[whole - 2], raw[whole - 1]];
-                    let unit = if self.le {
-                        u16::from_le_bytes(last)
-                    } else {
-                        u16::from_be_bytes(last)
-                    };
-                    if (0xD800..0xDC00).contains(&unit) {
-                        whole -= 2;
-                    }
-                }
-            } else {
-                whole = raw.len();
-            }
-            self.carry = raw.split_off(whole);
-            if n == 0 {
-                self.carry.clear();
-            }
-            self.out = utf16(&raw, self.le).into_bytes();
-            self.at = 0;
-        }
-        let n = buf.len().min(self.out.len() - self.at);
-        buf[..n].copy_from_slice(&self.out[self.at..self.at + n]);
-        self.at += n;
-        Ok(n)
     }
 }
 
@@ -496,13 +272,7 @@ impl Table {
         match le {
             Some(le) => {
                 reader.consume(2);
-                let utf8 = Utf16ToUtf8 {
-                    inner: reader,
-                    le,
-                    carry: Vec::new(),
-                    out: Vec::new(),
-                    at: 0,
-                };
+                let utf8 = Utf16ToUtf8::new(reader, le);
                 let size = size.map(|s| s / 2 * 3);
                 Table::from_lines(path, Lines::new(BufReader::new(utf8)), size)
             }
@@ -909,74 +679,6 @@ mod tests {
         assert_eq!(t.line(0), 3);
     }
 
-    /// UTF-16 with its mark (Excel's "Unicode text", tab-separated), read
-    /// from bytes a chunk at a time, and a carriage return alone as the
-    /// line end are read; a long cell where a number belongs is quoted
-    /// short in the error.
-    #[test]
-    fn utf_16_old_mac_line_ends_and_a_long_cell() {
-        let text = "Time (s)\tAngle (°)\r\n0\t0.3\r\n0.02\t0.29\r\n";
-        for le in [true, false] {
-            let mut bytes = if le {
-                vec![0xFF, 0xFE]
-            } else {
-                vec![0xFE, 0xFF]
-            };
-            bytes.extend(
-                text.encode_utf16().flat_map(
-                    |u| {
-                        if le { u.to_le_bytes() } else { u.to_be_bytes() }
-                    },
-                ),
-            );
-            let t = Table::from_reader(Path::new("u.txt"), bytes.as_slice()).unwrap();
-            assert_eq!(t.header, ["Time (s)", "Angle (°)"]);
-            assert_eq!(t.len(), 2);
-            assert_eq!(decode(bytes), text);
-        }
-        let t = Table::parse(Path::new("m.csv"), "t,theta\r0,0.3\r0.02,0.29\r").unwrap();
-        assert_eq!((t.header.len(), t.len()), (2, 2));
-        let long = "x".repeat(100_000);
-        let t = Table::parse(
-            Path::new("l.csv"),
-            &format!("t,theta\n0,0.3\n0.02,{long}\n"),
-        )
-        .unwrap();
-        let e = t.number(1, 1, "theta").unwrap_err().to_string();
-        assert!(
-            e.len() < 200 && e.contains("..."),
-            "{}",
-            &e[..e.len().min(300)]
-        );
-    }
-
-    /// One endless line (a binary, a file of one line) is refused at
-    /// [`LINE_BYTES_MAX`], and endless text with no row of numbers at
-    /// [`HEAD_BYTES_MAX`], without reading the rest.
-    #[test]
-    fn an_endless_line_and_an_endless_preamble_are_refused() {
-        let endless = std::io::repeat(b'x').take(LINE_BYTES_MAX as u64 + 10);
-        let e = Table::from_reader(Path::new("b.bin"), endless).unwrap_err();
-        assert!(e.to_string().contains("a line over 16 MiB"), "{e}");
-        /// "words\n" without end.
-        struct Words(usize);
-        impl Read for Words {
-            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-                for b in buf.iter_mut() {
-                    *b = b"words\n"[self.0 % 6];
-                    self.0 += 1;
-                }
-                Ok(buf.len())
-            }
-        }
-        let e = Table::from_reader(Path::new("w.txt"), Words(0)).unwrap_err();
-        assert!(
-            e.to_string()
-                .contains("no row of numbers in its first 16 MiB"),
-            "{e}"
-        );
-    }
-
     /// Columns aligned by runs of spaces are read as columns.
     #[test]
     fn columns_aligned_by_spaces() {
@@ -1001,36 +703,6 @@ mod tests {
         let t = Table::parse(Path::new("c.csv"), "t,x\n1,5\n\"0,5\",\"−1,5E−1\"\n").unwrap();
         assert_eq!(t.column(0), [1.0, 0.5]);
         assert_eq!(t.column(1), [5.0, -0.15]);
-    }
-
-    /// The one number reader: every form a locale or tool writes, and
-    /// text that is none. Golden values typed from the forms' meaning.
-    #[test]
-    fn numbers_in_every_written_form() {
-        for (field, want) in [
-            ("6,442E−2", 0.06442),
-            ("−0,5", -0.5),
-            ("\u{2012}1.5", -1.5),
-            ("\u{2013}1.5e\u{2013}1", -0.15),
-            ("\u{FE63}2", -2.0),
-            ("\u{FF0D}2,5", -2.5),
-            ("1e+3", 1000.0),
-            ("+1,5E+2", 150.0),
-            ("1\u{A0}234,5", 1234.5),
-            ("1\u{2009}234.5", 1234.5),
-            ("1\u{202F}234,5", 1234.5),
-            ("1'234.5", 1234.5),
-            ("1.234,5", 1234.5),
-            ("1,234.5", 1234.5),
-            ("9.969000006E-3", 0.009969000006),
-            ("  0.25 ", 0.25),
-        ] {
-            assert_eq!(number(field), Some(want), "{field}");
-        }
-        assert!(number("NaN").unwrap().is_nan());
-        for text in ["abc", "1,2,3", "1.2.3", "t", "", "−", "1,2.3,4"] {
-            assert_eq!(number(text), None, "{text}");
-        }
     }
 
     /// A file that is not UTF-8 is read as Latin-1: a Windows tool's `°`.
