@@ -77,7 +77,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Train(a) => cli::train::run(a),
         Cmd::Export(a) => cli::export::run(a),
         Cmd::Calibrate(a) => cli::calibrate::run(a),
-        Cmd::Estimate(a) => cli::estimate::run(a),
+        Cmd::Estimate(a) => cli::estimate_or_follow(a),
         Cmd::Bench(a) => cli::bench::run(a),
         Cmd::Import(a) => cli::import::run(a),
         Cmd::Diagnose(a) => cli::diagnose::run(a),

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use estimator::blob::Body;
-use estimator::{Estimator, StepOutput};
+use estimator::{Estimator, Model, StepOutput};
 use trainer_core::data::{self, Rollout, SourceMeta};
 use trainer_core::peer::{self, Doubt, Peer, PeerConfig, Reading};
 use trainer_core::track::figure::{self, Trace};
@@ -15,7 +15,7 @@ use trainer_core::track::{Tracked, track_each};
 pub struct Args {
     /// Weights blob.
     #[arg(long, default_value = "weights/pendulum.kkf")]
-    weights: PathBuf,
+    pub(super) weights: PathBuf,
     /// CSV `rollout,t,theta,theta_dot` on the model's interval; a gap of
     /// whole steps in `t` is bridged by the filter's prediction. Where its
     /// sidecar records how `koopman import` found each recording sampled,
@@ -76,19 +76,22 @@ impl Args {
     }
 }
 
-/// Runs it.
+/// The estimator every rollout starts from: the blob's, with `--g` where
+/// given.
+pub(super) fn fresh<'m>(a: &Args, model: &'m Model<'m>) -> Result<Estimator<'m>> {
+    Ok(match a.g {
+        Some(g) => Estimator::new(model)
+            .with_gravity(g)
+            .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?,
+        None => Estimator::new(model),
+    })
+}
+
+/// Runs it on a project CSV (`--follow` is [`super::follow::run`]).
 pub fn run(a: Args) -> Result<()> {
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
-    let fresh = match a.g {
-        Some(g) => Estimator::new(&model)
-            .with_gravity(g)
-            .map_err(|e| anyhow::anyhow!("--g {g}: {e}"))?,
-        None => Estimator::new(&model),
-    };
-    if let Some(source) = &a.follow {
-        return super::follow::run(&a, source, &model, &fresh);
-    }
+    let fresh = fresh(&a, &model)?;
     let Some(path) = &a.data else {
         anyhow::bail!("give the data (a project CSV) or --follow FILE|-");
     };

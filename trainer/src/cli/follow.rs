@@ -14,7 +14,7 @@ use std::sync::mpsc::{self, Sender};
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use estimator::{Estimator, Model};
+use estimator::Estimator;
 use trainer_core::data::import::Stream;
 use trainer_core::track::Run;
 
@@ -31,7 +31,10 @@ enum Input {
 }
 
 /// Runs the estimator over `source` as it is written.
-pub fn run(a: &Args, source: &Path, model: &Model<'_>, fresh: &Estimator<'_>) -> Result<()> {
+pub fn run(a: &Args, source: &Path) -> Result<()> {
+    let bytes = super::read_blob(&a.weights)?;
+    let model = &super::model(&a.weights, &bytes)?;
+    let fresh = &super::estimate::fresh(a, model)?;
     let body = model.blob().body;
     // The blob's interval as a user gives it to `import` (`--dt 0.04`, not
     // the f32's 0.03999999910593033), so that both make the same grid.

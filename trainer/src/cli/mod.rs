@@ -180,3 +180,12 @@ impl RecordingArgs {
         })
     }
 }
+
+/// `koopman estimate`: a project CSV ([`estimate::run`]), or with
+/// `--follow` a recording as it is written ([`follow::run`]).
+pub fn estimate_or_follow(a: estimate::Args) -> anyhow::Result<()> {
+    match a.follow.clone() {
+        Some(source) => follow::run(&a, &source),
+        None => estimate::run(a),
+    }
+}

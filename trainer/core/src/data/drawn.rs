@@ -21,7 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::import::{self, ImportOptions};
-use super::lab::{Artefacts, Case, Extras, LabSpec, Stamps};
+use super::lab::{Artefacts, Case, Extras, LabSpec, Stamps, log_uniform};
 use super::{Dataset, Rollout, RolloutMeta, Sidecar};
 use crate::physics::{EffectRange, Rig};
 
@@ -102,16 +102,6 @@ pub struct DrawnSet<'a> {
 pub fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     if hi > lo {
         rng.random_range(lo..hi)
-    } else {
-        lo
-    }
-}
-
-/// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty);
-/// `0 < lo` and both finite, which the callers check.
-pub fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
-    if hi > lo {
-        (rng.random_range(lo.ln()..hi.ln())).exp()
     } else {
         lo
     }

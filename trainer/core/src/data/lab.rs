@@ -37,7 +37,6 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 pub use self::artefacts::{Artefacts, LONGEST_GAP, SPIKE};
-use super::drawn::log_uniform;
 use super::import::Recording;
 use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
 
@@ -47,6 +46,16 @@ pub const RATES: [f64; 5] = [12.0, 25.0, 30.0, 50.0, 100.0];
 pub const LAB_G: f64 = 9.81;
 /// Integration step, s.
 const H: f64 = 5e-4;
+
+/// Log-uniform over `[lo, hi]` (`lo` itself when the range is empty);
+/// `0 < lo` and both finite, which the callers check.
+pub fn log_uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
+    if hi > lo {
+        (rng.random_range(lo.ln()..hi.ln())).exp()
+    } else {
+        lo
+    }
+}
 
 /// What a recording holds, as the diagnosis should name it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]

@@ -18,11 +18,10 @@
 //! line that is not UTF-8 is read as Latin-1 (a `°` written by a Windows
 //! tool). Every field is read as a number by one reader ([`number`]).
 
-use std::fmt;
 use std::io::{BufRead, BufReader, Read};
 
 pub use super::number::number;
-pub use super::text::{LINE_BYTES_MAX, decode};
+pub use super::text::{CsvError, LINE_BYTES_MAX, decode};
 use super::text::{Lines, Utf16ToUtf8};
 use std::path::{Path, PathBuf};
 
@@ -40,40 +39,6 @@ const BLANK: u64 = 0x7FF8_0000_B1A4_0001;
 /// Rows read before the room for the rest is reserved from the text's
 /// size and the bytes a row has taken so far.
 pub const RESERVE_AFTER: usize = 1024;
-
-/// A problem with a file, naming it and the line (1-based).
-#[derive(Debug, Clone, PartialEq)]
-pub struct CsvError {
-    /// The file.
-    pub path: PathBuf,
-    /// 1-based line, 0 when the problem is the whole file.
-    pub line: usize,
-    /// What is wrong.
-    pub problem: String,
-}
-
-impl CsvError {
-    /// A problem at `line` of `path` (0: the whole file).
-    pub fn new(path: &Path, line: usize, problem: impl Into<String>) -> CsvError {
-        CsvError {
-            path: path.to_path_buf(),
-            line,
-            problem: problem.into(),
-        }
-    }
-}
-
-impl fmt::Display for CsvError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line == 0 {
-            write!(f, "{}: {}", self.path.display(), self.problem)
-        } else {
-            write!(f, "{}:{}: {}", self.path.display(), self.line, self.problem)
-        }
-    }
-}
-
-impl std::error::Error for CsvError {}
 
 /// Items as an error lists them: the first [`LIST_MAX`] joined by `sep`,
 /// then how many more (an archive of 20,000 entries gives a line, not a

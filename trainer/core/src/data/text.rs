@@ -1,11 +1,45 @@
 //! Bytes as lines of text: UTF-8, Latin-1 where a line is not, UTF-16
 //! with its mark (transcoded as it is read), any line end, each line
-//! numbered; an endless line refused ([`LINE_BYTES_MAX`]).
+//! numbered; an endless line refused ([`LINE_BYTES_MAX`]). A problem names
+//! the file and the line ([`CsvError`]).
 
+use std::fmt;
 use std::io::{BufRead, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use super::table::CsvError;
+/// A problem with a file, naming it and the line (1-based).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CsvError {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line, 0 when the problem is the whole file.
+    pub line: usize,
+    /// What is wrong.
+    pub problem: String,
+}
+
+impl CsvError {
+    /// A problem at `line` of `path` (0: the whole file).
+    pub fn new(path: &Path, line: usize, problem: impl Into<String>) -> CsvError {
+        CsvError {
+            path: path.to_path_buf(),
+            line,
+            problem: problem.into(),
+        }
+    }
+}
+
+impl fmt::Display for CsvError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}: {}", self.path.display(), self.problem)
+        } else {
+            write!(f, "{}:{}: {}", self.path.display(), self.line, self.problem)
+        }
+    }
+}
+
+impl std::error::Error for CsvError {}
 
 /// Longest line read, bytes (16 MiB): a header of thousands of columns
 /// fits many times over; a file of one endless line (no table, or a

@@ -28,8 +28,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::data::Rollout;
-use crate::data::drawn::{log_uniform, uniform};
+use crate::data::drawn::uniform;
 use crate::data::import::{self, ImportOptions};
+use crate::data::lab::log_uniform;
 use crate::data::lab::{Case, LAB_G, LabSpec, RATES, Stamps};
 use crate::peer::{self, Peer, PeerConfig, Reading};
 use crate::physics::{Effect, EffectKind, Rig, RigPhysics};
