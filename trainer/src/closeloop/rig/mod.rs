@@ -264,21 +264,21 @@ pub fn close_loop_rig(
 ) -> Result<RigLoopReport> {
     let start = Instant::now();
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let say = |m: &str| {
-        if !opts.quiet {
-            eprintln!("close-loop: {m}");
-        }
-    };
     let given_bytes =
         std::fs::read(weights).with_context(|| format!("{}: cannot read", weights.display()))?;
     let given = models::open(&given_bytes, &weights.display().to_string())?;
     let mut opts = opts.clone();
     opts.import.dt = f64::from(given.blob().body.dt);
+    let say = |m: &str| {
+        if !opts.quiet {
+            eprintln!("close-loop: {m}");
+        }
+    };
     // 1. Read, split, diagnose.
     let (recs, ds) = parts::read_both(inputs, &opts.import)?;
     let dt = ds.sidecar.dt;
     let parts = parts::split_all(&recs, &ds, opts.import.start, &say)?;
-    // 2. The plan.
+    // 2. The plan, and the iterations this machine's pace allows.
     let given_cfg = export::config_of(weights);
     let mut plan = around::plan(
         &parts,
@@ -289,81 +289,196 @@ pub fn close_loop_rig(
         &opts,
     )?;
     let replicas = around::replicas(&plan.cfg, &parts, opts.rig, opts.g, dt);
-    let replica_s = 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
-    say("probing the training's pace on this machine");
-    let pace = Pace::probe(&plan.cfg, &out.join("probe"))?;
-    let estimate = |iterations: usize| estimated_seconds(iterations, replica_s, pace);
-    let asked = plan.cfg.iterations;
-    let iterations = if plan.cfg.warm_start.is_some() {
-        within_budget(asked, opts.iterations_least, estimate)
-    } else {
-        asked
-    };
-    if iterations < asked {
-        plan.start = format!(
-            "{}; {iterations} iterations, not {asked}, which would take about {:.0} min (the budget: {:.0})",
-            plan.start,
-            estimate(asked) / 60.0,
-            BUDGET_SECONDS / 60.0
-        );
-        plan.cfg.iterations = iterations;
-    }
-    if plan.cfg.warm_start.is_some() {
-        plan.cfg.snapshots = snapshot::iterations(plan.cfg.iterations);
-    }
-    let estimated = estimate(plan.cfg.iterations);
-    let ends = estimated + start.elapsed().as_secs_f64();
-    let rest_s = estimate(0);
     let carries_effect = carries_effect(&given_cfg, &parts);
-    let copy_s = COPY_SECONDS * pace.slowdown();
-    let copies = if carries_effect { COPIES } else { 0.0 };
-    let more = if plan.cfg.warm_start.is_some() {
-        weighing_seconds(
-            plan.cfg.snapshots.len() as f64 * rest_s,
-            copies * copy_s,
-            ends,
-        )
-    } else {
-        0.0
-    };
-    let [lo, hi] = plan.cfg.length_range();
-    say(&format!(
-        "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min here (the training at {:.3} s an iteration){}",
-        opts.rig.length_label(),
-        plan.cfg.theta0[0],
-        plan.cfg.theta0[1],
-        plan.cfg
-            .effect
-            .as_ref()
-            .map_or("no effect".into(), |e| format!(
-                "{} in {:.3e}..{:.3e}",
-                e.name, e.range[0], e.range[1]
-            )),
-        plan.start,
-        estimated / 60.0,
-        pace.seconds_per_iteration,
-        weighing_said(more, carries_effect)
-    ));
-    let estimated = ends;
+    say("probing the training's pace on this machine");
+    let budget = Budget::fit(&mut plan, &replicas, out, &opts, carries_effect, start)?;
+    say(&budget.said(&plan, &opts));
     // 3. Train, export, calibrate.
-    let run = out.join("run");
+    let (state, trained) = train(out, &mut plan, &budget, &opts, start)?;
+    let blob = out.join("rig.kkf");
+    say("choosing the filter's noise and calibrating the verdict");
+    let tuning = around::tuning_set(&plan.cfg);
+    let (_, noise) = noise::export(&out.join("run"), &blob, &tuning, &replicas)?;
+    let (kept, noise) = if plan.cfg.warm_start.is_some() {
+        say("weighing the fine-tuning's last model against the given blob on the replicas");
+        let given_blob = snapshot::Given {
+            model: &given,
+            path: weights,
+            carries_effect,
+            own: &given_cfg,
+            rig: opts.rig,
+            unit: around::period_lengths(&parts, opts.rig, opts.g).map(prior::unit_lengths),
+        };
+        let (choice, noise_kept) = keep_snapshot(
+            out,
+            &plan,
+            state.iteration,
+            &given_blob,
+            (&tuning, &replicas),
+            &budget,
+            start,
+        )?;
+        (Some(choice), noise_kept.unwrap_or(noise))
+    } else {
+        (None, noise)
+    };
+    let after_bytes = std::fs::read(&blob)?;
+    let after = models::open(&after_bytes, &blob.display().to_string())?;
+    // 4. Before and after on the held-out parts.
+    let recordings = before_and_after(&parts, (&given, &after), &opts, dt)?;
+    // 5. The report.
+    let report = RigLoopReport {
+        given: weights.to_path_buf(),
+        blob,
+        start: plan.start,
+        effect_reason: plan.effect_reason,
+        config: plan.cfg,
+        estimated_seconds: budget.ends,
+        estimated_more_seconds: budget.more,
+        pace: budget.pace,
+        trained,
+        noise,
+        kept,
+        recordings,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    report::write(out, &report)?;
+    Ok(report)
+}
+
+/// The time a run takes, measured on this machine before it trains.
+struct Budget {
+    /// The training's pace, probed.
+    pace: Pace,
+    /// Seconds a replica's reading takes at that pace (the export's and
+    /// the weighing's unit).
+    replica_s: f64,
+    /// Seconds from the start the run is estimated to end at.
+    ends: f64,
+    /// Seconds the weighing of snapshots may add.
+    more: f64,
+    /// Seconds of the run after the training, at its pace.
+    rest_s: f64,
+    /// A copy of the given blob weighed, and how many.
+    copy_s: f64,
+    copies: f64,
+    /// The training stops at the deadline (fine-tuning with fewer
+    /// iterations allowed than asked).
+    budgeted: bool,
+    /// Whether the given blob carries the diagnosed effect.
+    carries_effect: bool,
+}
+
+impl Budget {
+    /// Probes the pace and fits `plan`'s iterations within
+    /// [`BUDGET_SECONDS`] (a fine-tuning; a training anew keeps its own),
+    /// its snapshots to them; the estimate of the whole run.
+    fn fit(
+        plan: &mut around::Plan,
+        replicas: &trainer_core::labcheck::LabCheckConfig,
+        out: &Path,
+        opts: &CloseLoopOptions,
+        carries_effect: bool,
+        start: Instant,
+    ) -> Result<Budget> {
+        let replica_s = 0.5 * (replicas.seconds[0] + replicas.seconds[1]);
+        let pace = Pace::probe(&plan.cfg, &out.join("probe"))?;
+        let estimate = |iterations: usize| estimated_seconds(iterations, replica_s, pace);
+        let asked = plan.cfg.iterations;
+        let warm = plan.cfg.warm_start.is_some();
+        let iterations = if warm {
+            within_budget(asked, opts.iterations_least, estimate)
+        } else {
+            asked
+        };
+        if iterations < asked {
+            plan.start = format!(
+                "{}; {iterations} iterations, not {asked}, which would take about {:.0} min (the budget: {:.0})",
+                plan.start,
+                estimate(asked) / 60.0,
+                BUDGET_SECONDS / 60.0
+            );
+            plan.cfg.iterations = iterations;
+        }
+        if warm {
+            plan.cfg.snapshots = snapshot::iterations(plan.cfg.iterations);
+        }
+        let ends = estimate(plan.cfg.iterations) + start.elapsed().as_secs_f64();
+        let rest_s = estimate(0);
+        let copy_s = COPY_SECONDS * pace.slowdown();
+        let copies = if carries_effect { COPIES } else { 0.0 };
+        let more = if warm {
+            weighing_seconds(
+                plan.cfg.snapshots.len() as f64 * rest_s,
+                copies * copy_s,
+                ends,
+            )
+        } else {
+            0.0
+        };
+        Ok(Budget {
+            pace,
+            replica_s,
+            ends,
+            more,
+            rest_s,
+            copy_s,
+            copies,
+            budgeted: warm && opts.iterations_least < opts.iterations,
+            carries_effect,
+        })
+    }
+
+    /// The plan and the budget in words, for the user.
+    fn said(&self, plan: &around::Plan, opts: &CloseLoopOptions) -> String {
+        let [lo, hi] = plan.cfg.length_range();
+        let estimated = estimated_seconds(plan.cfg.iterations, self.replica_s, self.pace);
+        format!(
+            "a blob for {} {lo:.3}..{hi:.3}, swings {:.2}..{:.2} rad, {}: {}; about {:.0} min here (the training at {:.3} s an iteration){}",
+            opts.rig.length_label(),
+            plan.cfg.theta0[0],
+            plan.cfg.theta0[1],
+            plan.cfg
+                .effect
+                .as_ref()
+                .map_or("no effect".into(), |e| format!(
+                    "{} in {:.3e}..{:.3e}",
+                    e.name, e.range[0], e.range[1]
+                )),
+            plan.start,
+            estimated / 60.0,
+            self.pace.seconds_per_iteration,
+            weighing_said(self.more, self.carries_effect)
+        )
+    }
+}
+
+/// Trains (or reuses) the blob's model under `out/run`, stopped at the
+/// deadline where the budget says; the pace it trained at, and the stop
+/// said in the plan.
+fn train(
+    out: &Path,
+    plan: &mut around::Plan,
+    budget: &Budget,
+    opts: &CloseLoopOptions,
+    start: Instant,
+) -> Result<(crate::learn::run::RunState, Option<Pace>)> {
     let bar = if opts.quiet {
         ProgressBar::hidden()
     } else {
         ProgressBar::new(0)
     };
-    let budgeted = plan.cfg.warm_start.is_some() && opts.iterations_least < opts.iterations;
     let stop = |s: &crate::learn::run::RunState| {
         let slowed = match Pace::of_training(s.iteration, s.train_seconds) {
             Some(ran) if s.iteration >= PACE_AFTER => {
-                ran.seconds_per_iteration / pace.seconds_per_iteration
+                ran.seconds_per_iteration / budget.pace.seconds_per_iteration
             }
             _ => 1.0,
         };
-        past_deadline(start.elapsed().as_secs_f64(), rest_s, slowed)
+        past_deadline(start.elapsed().as_secs_f64(), budget.rest_s, slowed)
     };
-    let stop: Option<crate::learn::train::Stop<'_>> = budgeted.then_some(&stop);
-    let state = models::train_or_reuse(&run, plan.cfg.clone(), bar, stop)?;
+    let stop: Option<crate::learn::train::Stop<'_>> = budget.budgeted.then_some(&stop);
+    let state = models::train_or_reuse(&out.join("run"), plan.cfg.clone(), bar, stop)?;
     let trained = Pace::of_training(state.iteration, state.train_seconds);
     if state.iteration < plan.cfg.iterations {
         plan.start = format!(
@@ -374,42 +489,54 @@ pub fn close_loop_rig(
             start.elapsed().as_secs_f64() / 60.0,
             LIMIT_SECONDS / 60.0,
             trained.map_or(f64::NAN, |p| p.seconds_per_iteration),
-            pace.seconds_per_iteration,
+            budget.pace.seconds_per_iteration,
         );
     }
-    let blob = out.join("rig.kkf");
-    say("choosing the filter's noise and calibrating the verdict");
-    let tuning = around::tuning_set(&plan.cfg);
-    let (_, noise) = noise::export(&run, &blob, &tuning, &replicas)?;
-    let (kept, noise) = if plan.cfg.warm_start.is_some() {
-        say("weighing the fine-tuning's last model against the given blob on the replicas");
-        let room = || snapshot_room(start.elapsed().as_secs_f64(), rest_s, (copies, copy_s));
-        let copy_room = || start.elapsed().as_secs_f64() + copy_s <= LIMIT_SECONDS;
-        let given_blob = snapshot::Given {
-            model: &given,
-            path: weights,
-            carries_effect,
-            own: &given_cfg,
-            rig: opts.rig,
-            unit: around::period_lengths(&parts, opts.rig, opts.g).map(prior::unit_lengths),
-        };
-        let (choice, noise_kept) = snapshot::keep(
-            &run,
-            &blob,
-            (state.iteration, &plan.cfg.snapshots),
-            &given_blob,
-            (&tuning, &replicas),
-            &room,
-            &copy_room,
-        )?;
-        (Some(choice), noise_kept.unwrap_or(noise))
-    } else {
-        (None, noise)
+    Ok((state, trained))
+}
+
+/// The fine-tuning's snapshot kept against the given blob on the
+/// replicas ([`snapshot::keep`]), within the time left.
+fn keep_snapshot(
+    out: &Path,
+    plan: &around::Plan,
+    trained_to: usize,
+    given: &snapshot::Given<'_>,
+    sets: (
+        &trainer_core::labcheck::LabCheckConfig,
+        &trainer_core::labcheck::LabCheckConfig,
+    ),
+    budget: &Budget,
+    start: Instant,
+) -> Result<(Choice, Option<Vec<crate::export::NoiseCandidate>>)> {
+    let room = || {
+        snapshot_room(
+            start.elapsed().as_secs_f64(),
+            budget.rest_s,
+            (budget.copies, budget.copy_s),
+        )
     };
-    let after_bytes = std::fs::read(&blob)?;
-    let after = models::open(&after_bytes, &blob.display().to_string())?;
-    // 4. Before and after on the held-out parts.
-    let recordings = parts
+    let copy_room = || start.elapsed().as_secs_f64() + budget.copy_s <= LIMIT_SECONDS;
+    snapshot::keep(
+        &out.join("run"),
+        &out.join("rig.kkf"),
+        (trained_to, &plan.cfg.snapshots),
+        given,
+        sets,
+        &room,
+        &copy_room,
+    )
+}
+
+/// Each held-out part read by the given blob and the new one, beside the
+/// physics.
+fn before_and_after(
+    parts: &[parts::Part],
+    (given, after): (&estimator::Model<'_>, &estimator::Model<'_>),
+    opts: &CloseLoopOptions,
+    dt: f64,
+) -> Result<Vec<RigRecording>> {
+    parts
         .iter()
         .map(|p| {
             let d = &p.diagnosis;
@@ -419,31 +546,13 @@ pub fn close_loop_rig(
                 part_used: p.end.said(),
                 diagnosis: d.clone(),
                 length_period: opts.rig.length(opts.g, d.w * d.w),
-                before: read::held_out(&given, p, dt)?,
-                after: read::held_out(&after, p, dt)?,
+                before: read::held_out(given, p, dt)?,
+                after: read::held_out(after, p, dt)?,
                 physics: score::physics(p, opts.rig, opts.g, dt).ok(),
                 physics_fitted: score::physics_fitted(p, opts.rig, opts.g, dt).ok(),
             })
         })
-        .collect::<Result<_>>()?;
-    // 5. The report.
-    let report = RigLoopReport {
-        given: weights.to_path_buf(),
-        blob,
-        start: plan.start,
-        effect_reason: plan.effect_reason,
-        config: plan.cfg,
-        estimated_seconds: estimated,
-        estimated_more_seconds: more,
-        pace,
-        trained,
-        noise,
-        kept,
-        recordings,
-        seconds: start.elapsed().as_secs_f64(),
-    };
-    report::write(out, &report)?;
-    Ok(report)
+        .collect()
 }
 
 #[cfg(test)]

@@ -578,7 +578,7 @@ mod tests {
     }
 
     #[test]
-    fn a_gap_is_left_out_and_a_flat_line_and_the_wrong_unit_are_named() {
+    fn a_gap_is_left_out_not_interpolated_across() {
         let opts = ImportOptions::default();
         let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
         // 100 s without samples in the middle: both sides on one grid, the
@@ -629,6 +629,14 @@ mod tests {
         )
         .unwrap();
         assert!(*r.t.last().unwrap() < 20.0, "{:?}", r.t.last());
+    }
+
+    /// Stamps a second apart or more are refused; a gap over
+    /// `GAP_MAX_S` is not predicted across.
+    #[test]
+    fn milliseconds_read_as_seconds_and_a_gap_over_ten_minutes_are_named() {
+        let opts = ImportOptions::default();
+        let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
         // Time stamps a second apart or more (milliseconds read as
         // seconds): an error that says so.
         let t: Vec<f64> = (0..200).map(|k| k as f64 * 20.0).collect();
@@ -647,6 +655,14 @@ mod tests {
         // A gap over GAP_MAX_S is not predicted across.
         let e = super::super::model_steps(&[0.0, 0.04, 0.04 + 1e6], 0.04).unwrap_err();
         assert!(e.contains("a gap over 600 s"), "{e}");
+    }
+
+    /// A flat line, degrees read as radians and radians read as degrees
+    /// are refused with what to give; a single swing imports.
+    #[test]
+    fn a_flat_line_and_the_wrong_unit_are_named() {
+        let opts = ImportOptions::default();
+        let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
         let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         // A flat line.
         let e = to_rollout(
