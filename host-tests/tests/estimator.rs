@@ -773,3 +773,23 @@ fn encoded_measurements_pass_a_law_that_reads_the_swing() {
         out.trust
     );
 }
+
+/// A parameter is read where its calibrated error (`2 b`) is narrower
+/// than its trained range: the rig blob reads its length and not its
+/// viscous coefficient (`2 b` = 3.65 of 2, in the coordinate); the
+/// protocol blob's second parameter is padding, not read.
+#[test]
+fn a_blob_reads_the_parameters_its_error_does_not_span() {
+    let rig = host_tests::rig_blob();
+    let rig = Model::from_bytes(&rig).unwrap();
+    let body = &rig.blob().body;
+    assert!(body.reads(0));
+    assert!(!body.reads(1));
+    let floor = body.trust.std_floor[1];
+    assert!(2.0 * floor >= body.params[1].coordinate_span(), "{floor}");
+    let protocol = shipped_blob();
+    let protocol = Model::from_bytes(&protocol).unwrap();
+    assert!(protocol.blob().body.reads(0));
+    assert!(!protocol.blob().body.reads(1));
+    assert!(!protocol.blob().body.reads(7));
+}

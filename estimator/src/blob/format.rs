@@ -241,6 +241,21 @@ pub struct Body<'a> {
 }
 
 impl<'a> Body<'a> {
+    /// Whether the filter reads parameter `k`: declared, and its
+    /// calibrated error alone (`2 b`, twice [`TrustSpec::std_floor`], the
+    /// model's own error) narrower than the range it was trained on, in
+    /// the filter's coordinate. Where `2 b` spans that range the estimate
+    /// says nothing of where in it the rig lies, and its standard
+    /// deviation is the range, not a reading (the rig blob's viscous
+    /// coefficient: `2 b` = 3.65 of a range of 2; its damping is read as
+    /// the quality factor instead, [`StepOutput::q_factor`](crate::StepOutput::q_factor)).
+    pub fn reads(&self, k: usize) -> bool {
+        match (self.params.get(k), self.trust.std_floor.get(k)) {
+            (Some(spec), Some(b)) => spec.declared && 2.0 * b < spec.coordinate_span(),
+            _ => false,
+        }
+    }
+
     internal! {
         /// The `f32`s at `[at, at + len)` of the arena, as little-endian bytes.
         pub fn span(&self, at: usize, len: usize) -> F32s<'a> {

@@ -81,6 +81,17 @@ impl ParamSpec<'_> {
         }
     }
 
+    /// The trained range's width in the filter's coordinate: `hi - lo`
+    /// where the coordinate is the parameter moved or reciprocated (`Direct`,
+    /// `Centred`, `Reciprocal`), 2 where it is scaled to `[-1, 1]`.
+    pub fn coordinate_span(&self) -> f32 {
+        let [lo, hi] = self.train_range;
+        match self.reading {
+            Reading::Direct | Reading::Centred | Reading::Reciprocal => hi - lo,
+            Reading::ReciprocalUnit | Reading::Unit => 2.0,
+        }
+    }
+
     /// `(1/lo + 1/hi, 1/lo - 1/hi)`.
     #[inline]
     fn reciprocals(&self) -> (f32, f32) {

@@ -152,8 +152,8 @@ pub(super) struct Report<'a> {
 impl<'a> Report<'a> {
     pub(super) fn of(a: &'a Args, body: Body<'a>, sources: bool) -> Self {
         let names: Vec<&str> = body.params.iter().map(|p| p.name).collect();
-        let effect_label = body.params[1]
-            .declared
+        let effect_label = body
+            .reads(1)
             .then(|| format!("{} ({})", names[1], effect_unit(names[1])));
         Report {
             a,
@@ -251,8 +251,8 @@ impl<'a> Report<'a> {
     /// The rollout's figure, in `dir`.
     fn plot(&self, dir: &Path, r: &Rollout, steps: Vec<(f64, StepOutput)>) -> Result<()> {
         let (a, body) = (self.a, &self.body);
-        let effect = body.params[1]
-            .declared
+        let effect = body
+            .reads(1)
             .then(|| (self.names[1], effect_unit(self.names[1])));
         let g_note = match a.g {
             Some(g) => format!("g = {g} declared"),
@@ -286,8 +286,14 @@ impl<'a> Report<'a> {
         let (a, body, rig) = (self.a, &self.body, self.body.rig);
         let (out, n) = (&tracked.out, tracked.measured);
         let reasons: Vec<&str> = out.trust.reasons().iter().map(|r| r.as_str()).collect();
+        // A parameter the blob does not read is no estimate: null.
+        let read: Vec<bool> = (0..out.params.len()).map(|k| body.reads(k)).collect();
+        let only_read = |v: &[f32]| -> Vec<Option<f32>> {
+            v.iter().zip(&read).map(|(x, r)| r.then_some(*x)).collect()
+        };
         let mut v = serde_json::json!({
-            "rollout": id, "params": out.params, "param_std": out.param_std,
+            "rollout": id, "params": only_read(&out.params),
+            "param_std": only_read(&out.param_std), "param_read": read,
             "param_names": self.names, "coordinate": out.coordinate,
             "coordinate_std": out.coordinate_std, "sigma": out.sigma[0],
             "trusted": out.trust.is_trusted(),
