@@ -21,6 +21,13 @@ pub struct Counts {
     pub trusted_of_right: [usize; 2],
     /// Median relative error at the end.
     pub median_end_error: f64,
+    /// The learned model's own length within 2% at the end, before the
+    /// swing's period is joined with it.
+    #[serde(default)]
+    pub model_end_within_2: usize,
+    /// Its median relative error at the end.
+    #[serde(default)]
+    pub model_median_end_error: f64,
 }
 
 /// What one reader (the blob or the peer) made of a recording: the
@@ -58,6 +65,19 @@ impl Counts {
         c.median_end_error = crate::metrics::median(&mut errors);
         c
     }
+
+    /// The blob's counts of `group`, with its learned model's own length
+    /// at the end beside them ([`super::At::model_length`]).
+    fn of_blob<'a>(group: impl Iterator<Item = &'a Outcome> + Clone) -> Counts {
+        let mut c = Counts::of(group.clone(), blob_read);
+        let mut errors: Vec<f64> = group
+            .map(|o| (f64::from(o.end.model_length) - o.length).abs() / o.length)
+            .map(|e| if e.is_nan() { f64::INFINITY } else { e })
+            .collect();
+        c.model_end_within_2 = errors.iter().filter(|e| **e <= 0.02).count();
+        c.model_median_end_error = crate::metrics::median(&mut errors);
+        c
+    }
 }
 
 /// One group's counts, the blob's and the peer's.
@@ -75,7 +95,7 @@ impl Row {
     fn of(name: String, outcomes: &[Outcome], keep: impl Fn(&Outcome) -> bool) -> Row {
         Row {
             name,
-            blob: Counts::of(outcomes.iter().filter(|o| keep(o)), blob_read),
+            blob: Counts::of_blob(outcomes.iter().filter(|o| keep(o))),
             peer: Counts::of(outcomes.iter().filter(|o| keep(o)), peer_read),
         }
     }
@@ -152,7 +172,7 @@ pub fn figures(outcomes: &[Outcome]) -> Figures {
         })
         .collect();
     Figures {
-        all: Counts::of(outcomes.iter(), blob_read),
+        all: Counts::of_blob(outcomes.iter()),
         peer: Counts::of(outcomes.iter(), peer_read),
         tables: vec![
             ("effect".into(), by_effect),
@@ -167,7 +187,7 @@ pub fn figures(outcomes: &[Outcome]) -> Figures {
 /// and, beside it, the physics peer's; empty groups left out.
 pub fn markdown(f: &Figures) -> String {
     let mut s = String::from(
-        "Each figure the blob's, then the physics peer's (`trainer_core::peer`: an augmented-state EKF on the pendulum's ODE, on the same imported recording).\n",
+        "Each figure the blob's, then the physics peer's (`trainer_core::peer`: an augmented-state EKF on the pendulum's ODE, on the same imported recording); last, the learned model's own length, before the swing's period is joined with it.\n",
     );
     let pct = |k: usize, n: usize| {
         if n == 0 {
@@ -187,14 +207,18 @@ pub fn markdown(f: &Figures) -> String {
     };
     for (by, rows) in &f.tables {
         s.push_str(&format!(
-            "\nBy {by}:\n\n| recordings | n | within 2% at the end | peer | within 5% after 64 | peer | more than 5% off and trusted | peer | trusted, of those within 5% at the end | peer | median error at the end | peer |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+            "\nBy {by}:\n\n| recordings | n | within 2% at the end | peer | within 5% after 64 | peer | more than 5% off and trusted | peer | trusted, of those within 5% at the end | peer | median error at the end | peer | model alone: within 2% at the end | its median error |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
         ));
         for row in rows.iter().filter(|r| r.blob.n > 0) {
             s.push_str(&format!("| {} | {} |", row.name, row.blob.n));
             for (b, p) in cells(&row.blob).iter().zip(cells(&row.peer)) {
                 s.push_str(&format!(" {b} | {p} |"));
             }
-            s.push('\n');
+            s.push_str(&format!(
+                " {} | {:.2}% |\n",
+                pct(row.blob.model_end_within_2, row.blob.n),
+                100.0 * row.blob.model_median_end_error
+            ));
         }
     }
     s

@@ -108,6 +108,9 @@ pub struct At {
     pub length: f32,
     /// Its standard deviation.
     pub std: f32,
+    /// The learned model's own length, m, before the swing's period is
+    /// joined with it ([`Estimator::model_params`]).
+    pub model_length: f32,
     /// The second parameter (the blob's effect), when declared.
     pub effect: f32,
     /// The verdict (written as its word: `trusted`, `untrusted` or
@@ -143,11 +146,12 @@ fn trust_word<S: serde::Serializer>(trust: &Trust, s: S) -> Result<S::Ok, S::Err
 }
 
 impl At {
-    fn of(out: &StepOutput, measured: usize) -> At {
+    fn of(est: &Estimator<'_>, out: &StepOutput, measured: usize) -> At {
         At {
             measured,
             length: out.params[0],
             std: out.param_std[0],
+            model_length: est.model_params(&out.coordinate)[0],
             effect: out.params[1],
             trust: out.trust.clone(),
             reasons: out
@@ -175,6 +179,7 @@ impl At {
             measured: 0,
             length: f32::NAN,
             std: f32::NAN,
+            model_length: f32::NAN,
             effect: f32::NAN,
             trust: Trust::Pending,
             reasons: vec![why],
@@ -491,13 +496,14 @@ fn blob_reads(
     }
     let mut first = None;
     let mut n = 0;
+    let reader = fresh.clone();
     let tracked = track_each(&mut fresh, r, dt, None, |_, o| {
         n += 1;
         if n == WINDOW {
-            first = Some(At::of(o, n));
+            first = Some(At::of(&reader, o, n));
         }
     })?;
-    let end = At::of(&tracked.out, tracked.measured);
+    let end = At::of(&reader, &tracked.out, tracked.measured);
     Ok((first.unwrap_or_else(|| end.clone()), end))
 }
 
