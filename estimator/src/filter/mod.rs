@@ -3,7 +3,12 @@
 //! Its rooms: `kernels` (the sums and small factorisations every path
 //! uses), `scheduled` (updates on the blob's gain schedule), `two_stage`
 //! (after it), `full` (the whole recursion, and prediction without a
-//! measurement); the verdict is [`crate::trust`]'s.
+//! measurement), `update` (one step's measurement update, along one of
+//! those paths), `observe` (what the step saw beside the filter: the
+//! swing, the envelope, the kinematics), `output` (the step's report);
+//! the swing's readers `centre`, `period`, `decay`, `last_third`,
+//! `early` and `fit`, and `unobserved` (a step without a measurement);
+//! the verdict is [`crate::trust`]'s.
 //!
 //! # Notation (the maths is the spec)
 //! - state `m = [y; p]`: `y` the [`LATENT_DIM`] latent, `p` the
@@ -71,11 +76,13 @@ mod fit;
 mod full;
 mod kernels;
 mod last_third;
+mod observe;
 mod output;
 mod period;
 mod unobserved;
 mod scheduled;
 mod two_stage;
+mod update;
 
 pub use output::StepOutput;
 
@@ -84,7 +91,7 @@ use decay::Decay;
 use early::Early;
 use fit::Fit;
 use period::Period;
-use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
+use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, tail};
 
 use crate::model::{Model, Tail};
 use crate::trust::{EnvelopeWindow, Spread, SwingWindow};
@@ -530,170 +537,6 @@ impl<'m> Estimator<'m> {
         }
     }
 
-    /// One measurement, encoded (`z`), raw and normalised (`x_n`, for the
-    /// swing and envelope checks).
-    fn update(&mut self, z: &Latent, x: Option<(&State, &State)>) -> Result<StepOutput, Error> {
-        if !z.iter().all(|v| v.is_finite()) {
-            return Err(Error::NonFiniteInput);
-        }
-        let spec = &self.model.blob().body.filter;
-        if !self.started {
-            let mut m = [0.0; AUG_DIM];
-            for (d, s) in m.iter_mut().zip(z.iter().chain(&spec.prior_mean)) {
-                *d = *s;
-            }
-            let p = full::prior_covariance(spec);
-            self.mean = m;
-            self.p = p;
-            self.param_std = sqrt_diag(&p, LATENT_DIM);
-            self.t = 0;
-            self.started = true;
-            self.bridged = false;
-            self.spread = Spread::default();
-            self.window = EnvelopeWindow::default();
-            self.worst_off = 0;
-            self.consistency = Consistency::default();
-            self.kinematics = Kinematics::default();
-            self.swing = SwingWindow::default();
-            self.held = None;
-            self.outlier = false;
-            self.innovation = None;
-            self.half_pending = false;
-            self.observe(x);
-            return Ok(self.output([0.0; PARAM_DIM]));
-        }
-        let t = self.t.saturating_add(1);
-        let (mut v, mut pb) = (self.v, self.pb);
-        // The normalised innovation where the recursion forms S^-1.
-        let mut nis = None;
-        let tail = self.model.schedule_tail().filter(|_| self.uses_schedule());
-        let (m, param_std) = match (tail, self.model.scheduled_gain(t)) {
-            (Some(tail), Some((kt, std))) => {
-                let m = self.scheduled_update(z, kt)?;
-                // After the last scheduled update the filter goes on in
-                // two-stage form from the blob's V_T and P_b,T.
-                if t == self.model.schedule_steps() {
-                    (v, pb) = (*tail.v, *tail.pb);
-                }
-                (m, *std)
-            }
-            (Some(tail), None) => {
-                let m;
-                (m, v, pb) = self.two_stage_update(z, tail)?;
-                (m, sqrt_diag(&pb, 0))
-            }
-            (None, _) => {
-                let mut n = 0.0;
-                // A measurement the update cannot take (its innovation
-                // covariance not positive definite in f32: a glitch on an
-                // ill-conditioned state) is refused like an outlier (and
-                // where even the prediction across it fails, the step is
-                // refused with the state unchanged).
-                let (m, new_p) = match self.predict_update(z, &mut n) {
-                    Err(Error::FilterNotPositiveDefinite) => return self.refuse(f32::INFINITY),
-                    other => other?,
-                };
-                if self.is_outlier(n) {
-                    return self.refuse(n);
-                }
-                // P only where the recursion runs here (it is 1296 bytes
-                // to copy), once the measurement is taken.
-                self.p = new_p;
-                nis = Some(n);
-                (m, sqrt_diag(&self.p, LATENT_DIM))
-            }
-        };
-        let mut correction = [0.0; PARAM_DIM];
-        for (c, (new, old)) in correction.iter_mut().zip(
-            m.iter()
-                .skip(LATENT_DIM)
-                .zip(self.mean.iter().skip(LATENT_DIM)),
-        ) {
-            *c = new - old;
-        }
-        self.mean = m;
-        self.v = v;
-        self.pb = pb;
-        self.param_std = param_std;
-        self.t = t;
-        if t >= self.burn_until.max(u32::from(spec.burn_in)) {
-            self.spread.push(&correction);
-            if let Some(n) = nis {
-                self.consistency.push(n);
-            }
-        }
-        self.outlier = false;
-        self.outlier_run = 0;
-        self.innovation = nis;
-        self.observe(x);
-        Ok(self.output(correction))
-    }
-
-    /// Whether the parameters were reopened since the start (an offset
-    /// found): a burn-in was set again.
-    fn reopened(&self) -> bool {
-        self.burn_until > 0
-    }
-
-    /// The smallest swing read as trusted: the blob's calibrated one; for
-    /// a swing never that wide, once the decay has read
-    /// [`decay::LONG_HALVES`] half swings, the smallest it reads
-    /// ([`decay::MIN_AMPLITUDE`]) where that is less. A swing once wider
-    /// is held below the blob's as before (read on down to 0.03 rad, an
-    /// hour at Q = 5000 ended 0.61% off rather than 0.28%).
-    fn swing_floor(&self) -> f32 {
-        let min_swing = self.model.blob().body.trust.min_swing;
-        let never_wide = self.swing.widest().is_none_or(|w| w < min_swing);
-        if never_wide
-            && self.decay.halves_read() >= decay::LONG_HALVES
-            && decay::MIN_AMPLITUDE < min_swing
-        {
-            decay::MIN_AMPLITUDE
-        } else {
-            min_swing
-        }
-    }
-
-    /// Records the measured angle's size, and whether the measured state
-    /// `x_n` lies in the training envelope: at the estimated parameter
-    /// once past the burn-in, at any before (the estimate is still
-    /// settling).
-    fn observe(&mut self, x: Option<(&State, &State)>) {
-        let Some((raw, x_n)) = x else {
-            self.kinematics.gap();
-            return;
-        };
-        let [theta, rate] = *raw;
-        let min_swing = self.model.blob().body.trust.min_swing;
-        // The snapshot from the latest swing, the decision to report it
-        // from the recent one (which lags): nothing the small swing told
-        // the filter gets into the snapshot; nor does an estimate still
-        // settling a window after its parameters were reopened.
-        let settled_again = !self.reopened()
-            || self.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
-        if self.swing.push(theta, rate, min_swing) >= self.swing_floor() && settled_again {
-            self.held = Some((*tail(&self.mean), self.param_std, self.period.omega_squared()));
-        }
-        self.kinematics.push(theta, rate, self.model.blob().body.dt);
-        let burn_in = u32::from(self.model.blob().body.filter.burn_in);
-        let settled = self.t >= self.burn_until.max(burn_in);
-        let q = tail(&self.mean).first().copied().filter(|_| settled);
-        let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
-        self.window.push(!inside);
-        self.worst_off = self.worst_off.max(self.window.count());
-    }
-
-    /// The predicted latent `y' = C g = sum_k g_k C^T_k` and the innovation
-    /// `nu = z - y'`: how every update starts.
-    #[inline(always)]
-    fn predict_latent(&self, z: &Latent) -> (Latent, Latent) {
-        let y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
-        let mut nu = *z;
-        for (v, yi) in nu.iter_mut().zip(&y) {
-            *v -= yi;
-        }
-        (y, nu)
-    }
 }
 
 internal! {
