@@ -165,11 +165,8 @@ impl Stream {
         let columns = stream_columns(&table, &self.opts)?;
         self.rec.theta_dot = columns.rate.map(|_| Vec::new());
         self.columns = Some(columns);
-        let rows = table.len();
         self.table = Some(table);
-        for row in 0..rows {
-            self.take(row)?;
-        }
+        self.take(0)?;
         self.head = String::new();
         Ok(Vec::new())
     }
@@ -307,22 +304,33 @@ mod tests {
 
     /// A Vernier-like file at 50 Hz fed a line at a time gives out, by
     /// its end, the very samples `import` makes of the whole file (the
-    /// differentiator's window given to both).
+    /// differentiator's window given to both); with rows out of time
+    /// order too, each put at its time by both.
     #[test]
     fn a_stream_gives_what_import_gives() {
-        let mut text = String::from("\"Latest: Time (s)\",\"Latest: Angle (°)\"\n");
+        let mut lines = vec![String::from("\"Latest: Time (s)\",\"Latest: Angle (°)\"")];
         for k in 0..1500 {
             let t = f64::from(k) * 0.02;
             let a = 30.0 * (-t / 20.0).exp() * (4.0 * t).cos() + 0.03 * (f64::from(k) * 7.1).sin();
-            text.push_str(&format!("{t:.2},{a:.3}\n"));
+            lines.push(format!("{t:.2},{a:.3}"));
         }
+        let text = lines.join("\n") + "\n";
+        same_from_stream_and_import(&text);
+        for k in [300, 700, 1201] {
+            lines.swap(k, k + 1);
+        }
+        same_from_stream_and_import(&(lines.join("\n") + "\n"));
+    }
+
+    /// `text` fed a line at a time gives out what `import` makes of it.
+    fn same_from_stream_and_import(text: &str) {
         let opts = ImportOptions {
             dt: 0.04,
             smooth: Some(0.06),
             ..ImportOptions::default()
         };
         let path = std::env::temp_dir().join(format!("koopman-stream-{}.csv", std::process::id()));
-        std::fs::write(&path, &text).unwrap();
+        std::fs::write(&path, text).unwrap();
         let (ds, _, _) = super::super::import_with_layouts(&[path.clone()], &opts).unwrap();
         std::fs::remove_file(&path).unwrap();
         let want = ds.rollouts[0].clone();
