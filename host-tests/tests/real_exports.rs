@@ -199,6 +199,16 @@ fn saved_phyphox(
     text
 }
 
+/// The experiment's `<input>`: the gyroscope (`attributes` after its
+/// type) writing `gyrX`, `gyrY`, `gyrZ` and `gyr_time`, then `more`.
+fn gyroscope_input(attributes: &str, more: &str) -> String {
+    format!(
+        "    <sensor type=\"gyroscope\"{attributes}>\n      <output component=\"x\">gyrX</output>\n      \
+         <output component=\"y\">gyrY</output>\n      <output component=\"z\">gyrZ</output>\n      \
+         <output component=\"t\">gyr_time</output>\n{more}    </sensor>\n"
+    )
+}
+
 /// The gyroscope's rates of `s` as the phone measures them (the swing on
 /// z tilted 8 degrees into x, biases, noise), with their absolute.
 fn gyro_rates(s: &Swing, rng: &mut ChaCha8Rng) -> [Vec<f64>; 4] {
@@ -229,9 +239,7 @@ fn phyphoxs_own_file_imports_as_its_csv_export() {
     let s = swing(0.55, 0.5, 0.01, 60.0);
     let t: Vec<f64> = s.t.iter().map(|t| t + 0.0446777).collect();
     let [x, y, z, abs] = gyro_rates(&s, &mut rng);
-    let input = "    <sensor type=\"gyroscope\">\n      <output component=\"x\">gyrX</output>\n      \
-                 <output component=\"y\">gyrY</output>\n      <output component=\"z\">gyrZ</output>\n      \
-                 <output component=\"t\">gyr_time</output>\n      <output component=\"abs\">gyr</output>\n    </sensor>\n";
+    let input = gyroscope_input("", "      <output component=\"abs\">gyr</output>\n");
     let export = "    <set name=\"Raw Data\">\n      <data name=\"Time (s)\">gyr_time</data>\n      \
                   <data name=\"Gyroscope x (rad/s)\">gyrX</data>\n      <data name=\"Gyroscope y (rad/s)\">gyrY</data>\n      \
                   <data name=\"Gyroscope z (rad/s)\">gyrZ</data>\n      <data name=\"Absolute (rad/s)\">gyr</data>\n    </set>\n";
@@ -242,7 +250,7 @@ fn phyphoxs_own_file_imports_as_its_csv_export() {
         ("size=\"0\"", "gyr", abs.clone()),
         ("size=\"0\"", "gyr_time", t.clone()),
     ];
-    let saved = saved_phyphox("Gyroscope (rotation rate)", &containers, input, export);
+    let saved = saved_phyphox("Gyroscope (rotation rate)", &containers, &input, export);
     let p = file(
         "Gyroscope rotation rate 2026-12-07 13-05-00.phyphox",
         saved.as_bytes(),
@@ -267,7 +275,7 @@ fn phyphoxs_own_file_imports_as_its_csv_export() {
     .iter()
     .map(|n| ("size=\"0\"", *n, Vec::new()))
     .collect();
-    let saved = saved_phyphox("Gyroscope (rotation rate)", &empty, input, export);
+    let saved = saved_phyphox("Gyroscope (rotation rate)", &empty, &input, export);
     let e = import_error(&file("empty.phyphox", saved.as_bytes()));
     assert!(
         e.contains("its buffers are a (0 values), b (0 values)") && e.contains("and 2 more"),
@@ -286,9 +294,7 @@ fn phyphoxs_pendulum_file_imports_its_rotation_buffers() {
     let s = swing(0.35, 0.4, 0.02, 9.98);
     let t: Vec<f64> = s.t.iter().map(|t| t + 31.2).collect();
     let [x, y, z, _] = gyro_rates(&s, &mut rng);
-    let input = "    <sensor type=\"gyroscope\" rate=\"50\">\n      <output component=\"x\">gyrX</output>\n      \
-                 <output component=\"y\">gyrY</output>\n      <output component=\"z\">gyrZ</output>\n      \
-                 <output component=\"t\">gyr_time</output>\n    </sensor>\n";
+    let input = gyroscope_input(" rate=\"50\"", "");
     let export = "    <set name=\"Raw Data\">\n      <data name=\"Time (s)\">gyr_time</data>\n      \
                   <data name=\"Rotation x (rad/s)\">gyrX</data>\n      <data name=\"Rotation y (rad/s)\">gyrY</data>\n      \
                   <data name=\"Rotation z (rad/s)\">gyrZ</data>\n    </set>\n    \
@@ -322,7 +328,7 @@ fn phyphoxs_pendulum_file_imports_its_rotation_buffers() {
         ("size=\"0\"", "relamplitude", vec![1.0, 0.99, 0.98]),
         ("", "length", vec![0.35]),
     ];
-    let saved = saved_phyphox("Pendulum", &containers, input, export);
+    let saved = saved_phyphox("Pendulum", &containers, &input, export);
     let layouts = assert_within_2(
         &file("Pendulum 2026-12-07 13-05-00.phyphox", saved.as_bytes()),
         &[0.35],

@@ -21,7 +21,7 @@
 use std::io::{BufRead, BufReader, Read};
 
 pub use super::number::number;
-pub use super::text::{CsvError, LINE_BYTES_MAX, decode};
+pub use super::text::{CsvError, LINE_BYTES_MAX};
 use super::text::{Lines, Utf16ToUtf8};
 use std::path::{Path, PathBuf};
 
