@@ -109,34 +109,60 @@ pub use rig::{Rig, UnknownRig};
 pub use trust::{Reason, Reasons, Trust};
 
 /// Measured state size: `(theta, theta_dot)`.
+///
+/// Unit: a count. Fixed by the physics: a pendulum's state is its angle and
+/// rate.
 pub const STATE_DIM: usize = 2;
 /// Latent size (the encoder's output).
+///
+/// Unit: a count. Fixed by the trained blobs (their header's `latent_dim`
+/// must match); set by hand in the first commit (93a4f5e), not swept.
 pub const LATENT_DIM: usize = 16;
 /// Physical parameters carried in the filter state.
+///
+/// Unit: a count. Fixed by the blob format: the two parameters a blob
+/// declares (docs/blob-format.md).
 pub const PARAM_DIM: usize = 2;
 /// Filter state size, `[y; p]`.
+///
+/// Unit: a count. Derived: [`LATENT_DIM`] plus [`PARAM_DIM`].
 pub const AUG_DIM: usize = LATENT_DIM + PARAM_DIM;
 internal! {
     /// The widest hidden layer of the encoder and decoder (the protocol's
     /// blob's).
+    ///
+    /// Unit: a count (neurons). Fixed by the protocol's trained blob (its
+    /// header's `hidden_dim`).
     pub const HIDDEN_DIM: usize = 128;
 }
 internal! {
     /// The hidden widths a blob may have (its header's `hidden_dim`): the
     /// estimator runs each with sizes fixed at compile time. A narrower
     /// encoder costs a step less (the rig blob's 64).
+    ///
+    /// No unit: a list of counts (neurons). Fixed by the blobs shipped, the rig
+    /// blob's and the protocol's.
     pub const HIDDEN_WIDTHS: [usize; 2] = [HIDDEN_NARROW, HIDDEN_DIM];
 }
 internal! {
     /// The narrower of the hidden widths (the rig blob's).
+    ///
+    /// Unit: a count (neurons). Fixed by the rig blob (its header's
+    /// `hidden_dim`).
     pub const HIDDEN_NARROW: usize = 64;
 }
 internal! {
     /// Control inputs (torque).
+    ///
+    /// Unit: a count. Fixed by the physics: one torque drives the pendulum.
     pub const INPUT_DIM: usize = 1;
 }
 /// The protocol's estimation window: the filter sees `x_0 .. x_63`, and
 /// the blob's gain schedule covers its `WINDOW - 1` updates.
+///
+/// Unit: a count (measurements). Fixed by the protocol
+/// (`trainer_core::protocol::WINDOW` re-exports it); set by hand in the
+/// first commit (93a4f5e), not swept.
 pub const WINDOW: usize = 64;
 
 /// A raw or normalised measured state.

@@ -46,6 +46,8 @@ pub enum Rig {
 
 impl Rig {
     /// Every rig, in the order the command line lists them.
+    ///
+    /// No unit (a list). Fixed by [`Rig`]'s variants.
     pub const ALL: [Rig; 2] = [Rig::Simple, Rig::Rod];
 
     /// `l_eq / L`: the equivalent simple length per unit of the rig's

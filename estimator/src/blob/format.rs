@@ -6,8 +6,14 @@ use super::{Envelope, Layout, ParamSpec};
 use crate::{AUG_DIM, Error, HIDDEN_DIM, INPUT_DIM, LATENT_DIM, PARAM_DIM, Rig, STATE_DIM};
 
 /// First four bytes of every blob.
+///
+/// Unit: bytes (ASCII `KKF1`). Fixed by the blob format
+/// (docs/blob-format.md).
 pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
+///
+/// Unit: a count (a version number). Set by hand: raised at each change of
+/// the format (11 since f405e4a).
 pub const FORMAT_VERSION: u16 = 11;
 
 /// The fixed-size header, read before anything else.
@@ -31,6 +37,9 @@ pub struct Header {
 
 impl Header {
     /// The header this build expects.
+    ///
+    /// No unit (a header). Derived from [`MAGIC`], [`FORMAT_VERSION`] and the
+    /// crate's sizes.
     pub const CURRENT: Header = Header {
         magic: MAGIC,
         version: FORMAT_VERSION,

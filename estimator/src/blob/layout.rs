@@ -5,6 +5,9 @@ use crate::{AUG_DIM, HIDDEN_DIM, HIDDEN_WIDTHS, INPUT_DIM, LATENT_DIM, PARAM_DIM
 
 internal! {
     /// Number of dense layers in the encoder and in the decoder.
+    ///
+    /// Unit: a count. Fixed by the trained MLPs' architecture (`I -> H -> H ->
+    /// O`, `model::mlp`).
     pub const N_LAYERS: usize = 3;
 }
 
@@ -117,21 +120,30 @@ impl Layout {
 internal! {
     /// Values of one scheduled update: `K^T` then the parameters' standard
     /// deviations.
+    ///
+    /// Unit: a count (f32 values). Derived from the sizes.
     pub const SCHEDULE_STEP_LEN: usize = LATENT_DIM * AUG_DIM + PARAM_DIM;
 }
 
 internal! {
     /// Values of the schedule's tail: `S~^-1`, `P~`, `V_T`, `P_b,T`.
+    ///
+    /// Unit: a count (f32 values). Derived from the sizes.
     pub const TAIL_LEN: usize =
         2 * LATENT_DIM * LATENT_DIM + PARAM_DIM * LATENT_DIM + PARAM_DIM * PARAM_DIM;
 }
 
 internal! {
     /// Matrices of a bilinear arena: `F_0`, `F_1`, `F_2`, `F_11`.
+    ///
+    /// Unit: a count (matrices). Fixed by the bilinear model's form
+    /// (docs/bilinear.md).
     pub const BILINEAR_BLOCKS: usize = 4;
 }
 internal! {
     /// Values of one bilinear matrix.
+    ///
+    /// Unit: a count (f32 values). Derived: `LATENT_DIM` squared.
     pub const BILINEAR_BLOCK_LEN: usize = LATENT_DIM * LATENT_DIM;
 }
 

@@ -56,29 +56,52 @@ use super::REOPEN_SHARE;
 
 /// The share of the last half swing's largest rate that the rate must
 /// pass the other way to end a half swing.
+///
+/// Unit: a share (of a rate; dimensionless). Set by hand with the offset's
+/// tracker (f405e4a); not swept.
 const HYSTERESIS: f32 = 0.25;
 /// Measurements a half swing holds at least.
+///
+/// Unit: a count (measurements). Set by hand (f405e4a); not swept. Three is
+/// the fewest that hold an extreme with a neighbour either side.
 const MIN_HALF: u16 = 3;
 /// Triples read before an offset is subtracted (the first where it is
 /// at least twice [`OFFSET_FLOOR`]).
+///
+/// Unit: a count (triples). Compared with 2 on lab-check seed 12 (module
+/// docs): with two triples, 34 of 200 recordings with offsets to 0.1 rad
+/// were off by more than 2% at the end rather than 26.
 const MIN_TRIPLES: u32 = 1;
 /// The smallest offset subtracted, rad (0.3 degrees; real rigs' are
 /// 0.01-0.06).
+///
+/// Unit: rad. Set by hand where the turning points' own error (the
+/// parabola's on a wide swing, the noise's) is as large (module docs); not
+/// swept.
 const OFFSET_FLOOR: f32 = 5e-3;
 /// The least share of the half swing a first pair's middle on the side of
 /// its first turning point is subtracted from: a damping that loses half
 /// the amplitude in half a swing moves the middle by a third of the half
 /// swing (Q of about 2).
+///
+/// Unit: a share (of the half swing; dimensionless). Derived from the
+/// damping bound above, and compared with `REOPEN_SHARE`'s 0.2 on
+/// `rig_off_distribution` (viscous 0.3 to 1 1/s): at 0.2, 3 of 120 were
+/// wrong and trusted (module docs). Other values not swept.
 const PAIR_DAMPED_SHARE: f32 = 0.5;
 /// The largest share of its half swing's largest `|rate|` the first
 /// measurement's may have for it to be a turn (a release from rest): at
 /// 0.35 its angle lies 6% of the swing short of the turn, moved out by
-/// the harmonic swing's `1 - sqrt(1 - share^2)`. Within 5% after 64
-/// measurements on lab-check seeds 12, 14, 15 and 16 (800): 0.2, 616
-/// (2 wrong and trusted); 0.35, 614 (1); 0.5, 614 (1); none, 610 (3).
+/// the harmonic swing's `1 - sqrt(1 - share^2)`.
+///
+/// Unit: a share (dimensionless). Chosen by a sweep on lab-check seeds 12,
+/// 14, 15 and 16 (800): 0.35 let one wrong and trusted through where 0.2
+/// let two, two fewer right (sweep: docs/tuning.md#filtercentrerest_share).
 const REST_SHARE: f32 = 0.35;
 /// The smallest swing (half the range between turning points, rad) a
 /// triple is read from: below it the tracking noise dominates.
+///
+/// Unit: rad. Set by hand (f405e4a) at about the tracking noise; not swept.
 const MIN_SWING: f32 = 0.005;
 
 /// The turning points so far and the offset they give.

@@ -40,55 +40,82 @@ use super::last_third::{LastThird, PARTS, Sums};
 
 /// The least memory, half swings: a half swing keeps `1 - 1 / memory` of
 /// its weight for each one after it.
+///
+/// Unit: half swings (a count). Set by hand (c1fc0a9); not swept.
 pub(crate) const MEMORY: f32 = 40.0;
 /// The share of the half swings read so far the memory grows to (the
 /// mean age of the last third's).
+///
+/// Unit: a share (of the half swings read). Derived: a forgetting of memory
+/// `M` has a mean age of about `M` half swings, and the last third of `n`
+/// half swings a mean age of `n / 6` (26b5e0c); not swept.
 pub(crate) const MEMORY_SHARE: f32 = 1.0 / 6.0;
 /// Half swings read before a `Q` is given.
+///
+/// Unit: half swings (a count). Set by hand (c1fc0a9); not swept.
 pub(crate) const MIN_HALVES: u16 = 8;
 /// Half swings read (each at least [`MIN_AMPLITUDE`]) from which the
 /// smallest trusted swing, for a swing never as wide as the blob's
 /// (calibrated on estimates a window in, where a small swing has given a
-/// period or two), is [`MIN_AMPLITUDE`]. On the real-rig lab-check's
-/// seeds 12, 14, 15 and 16 (800 recordings), the right lengths trusted at
-/// the end: 616 of 764 with the blob's alone; from 16, 673; from 12, 678;
-/// from 10, 684 (for any swing; for one never as wide, from 12, 677);
-/// none more wrong and trusted, there or on 80 recordings of 10 to 20
-/// minutes (seed 41). Without the hold below the floor (the
-/// estimate at the end, whatever the swing then), 8 let one more wrong
-/// length through, and 12 two of the long ones.
+/// period or two), is [`MIN_AMPLITUDE`].
+///
+/// Unit: half swings (a count). Chosen by a sweep (16, 12, 10, the blob's
+/// alone) on the real-rig lab-check's seeds 12, 14, 15 and 16 and seed 41's
+/// long recordings: from 12, 678 of the 764 right lengths trusted at the
+/// end rather than 616, none more wrong and trusted (sweep:
+/// docs/tuning.md#filterdecaylong_halves).
 pub(crate) const LONG_HALVES: u16 = 12;
 /// The largest relative standard deviation of a `Q` that replaces one
 /// read more sharply (the last such is held while the swing dies into
 /// the noise, with the swing it was read at: there the tracker's noise
-/// lifts each amplitude and flattens the decay). Chosen on lab recordings
-/// of seeds 29 (60 to 120 s) and 37 (10 to 20 min): at 0.25, 0.12 and
-/// 0.08, `Q` within 25% on 93%, 96% and 96% of seed 29's and 80%, 89%
-/// and 92% of seed 37's (docs/damping.md).
+/// lifts each amplitude and flattens the decay).
+///
+/// Unit: relative (a share of `Q`). Chosen by a sweep (0.25, 0.12, 0.08) on
+/// lab recordings of seeds 29 and 37: 0.08 kept the most `Q` within 25%
+/// (sweep: docs/tuning.md#filterdecayhold).
 pub(crate) const HOLD: f32 = 0.08;
 /// The smallest amplitude read, rad: below it a tracker's noise and a
 /// rig at rest make half swings of their own.
+///
+/// Unit: rad. Set by hand (c1fc0a9); not swept. The period and the first
+/// half swings read it too (`period::MIN_AMPLITUDE`).
 pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
 /// The smallest amplitude the last third's fit reads, rad (a swing's
-/// envelope reads to the tracker's noise). Chosen with [`WINDOW_SHARP`]
-/// on envelope seeds 401-440 and lab-check seeds 29, 31 and 41: at 0.01,
-/// `Q` within 25% of the envelope on 73% (a last third deep in small
-/// swings held the memory's, read at a wider swing); at 0.005, 79%, with
-/// the truth's figures within a recording of 0.01's (docs/damping.md).
+/// envelope reads to the tracker's noise).
+///
+/// Unit: rad. Chosen with [`WINDOW_SHARP`] by a sweep on envelope seeds
+/// 401-440 and lab-check seeds 29, 31 and 41: at 0.005, `Q` within 25% of
+/// the envelope on 79%, at 0.01 on 73% (sweep:
+/// docs/tuning.md#filterdecayread_amplitude).
 pub(crate) const READ_AMPLITUDE: f32 = 0.005;
 /// The largest relative standard deviation of the last third's fit (its
 /// bend not counted) whose `Q` is reported; a wider one gives way to the
 /// memory's.
+///
+/// Unit: relative (a share of `Q`). Chosen with [`READ_AMPLITUDE`] by the
+/// same sweep (0.2, 0.3, 0.4, any; sweep:
+/// docs/tuning.md#filterdecayread_amplitude).
 pub(crate) const WINDOW_SHARP: f32 = 0.3;
 /// `Q`'s relative spread over the swings a last third holds, and between
 /// ways of reading its envelope: added to the reported standard deviation
 /// in quadrature.
+///
+/// Unit: relative (a share of `Q`). Chosen by a sweep (0.08, 0.1, 0.12) on
+/// envelope seeds 401-420 and 441-460: the envelope within 2 standard
+/// deviations on 83% and 91% at 0.1 (sweep:
+/// docs/tuning.md#filterdecayspread).
 pub(crate) const SPREAD: f32 = 0.1;
 /// Half swings each part of the last third holds at least for its bend
 /// to be read ([`bend`]).
+///
+/// Unit: half swings (a count, a float to compare with the sums' weights).
+/// Set by hand (b581eb7); not swept.
 pub(crate) const BEND_HALVES: f32 = 4.0;
 /// The most a half swing's duration strays from the mean's, as a share of
 /// it, to be read (noise's half swings have any duration).
+///
+/// Unit: a share (of the mean half swing's duration). Set by hand
+/// (c1fc0a9); not swept.
 pub(crate) const DURATION_SPREAD: f32 = 0.3;
 /// The slope's standard deviation over the least-squares one, and a
 /// floor on `Q`'s relative one (the swing the fit is at is a mean, and
@@ -96,8 +123,14 @@ pub(crate) const DURATION_SPREAD: f32 = 0.3;
 /// narrowest band that covers the truth within 2 standard deviations on
 /// 95% of the lab recordings of seed 29 (`koopman lab-check --seed 29
 /// --seconds 60,120 --mixed`; docs/damping.md).
+///
+/// Unit: dimensionless (a ratio of standard deviations). The grid's other
+/// points were not logged (docs/tuning.md#filterdecaystd_scale).
 pub(crate) const STD_SCALE: f32 = 2.5;
-/// See [`STD_SCALE`].
+/// A floor on `Q`'s relative standard deviation (see [`STD_SCALE`]).
+///
+/// Unit: relative (a share of `Q`). Chosen with [`STD_SCALE`] on the same
+/// grid on seed 29 (docs/tuning.md#filterdecaystd_scale).
 pub(crate) const STD_FLOOR: f32 = 0.03;
 
 /// The decay so far and the `Q` it gives.

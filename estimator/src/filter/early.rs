@@ -28,21 +28,42 @@ use super::period::{agm_of_cos_half, MIN_AMPLITUDE};
 /// Measured angles kept: the last two half swings' (between the findings
 /// of their turning points) of a 3 m string at 0.04 s; a longer half swing
 /// is not timed.
+///
+/// Unit: a count (measurements). Derived: a 3 m string's half swing lasts
+/// `pi sqrt(3 / 9.81)` = 1.74 s, and two of them at 0.04 s are 87
+/// measurements, rounded up to 96; not swept.
 pub(crate) const KEPT: usize = 96;
 /// The largest relative departure of a half swing timed from the angles'
 /// own extremes from the half swings read before it.
+///
+/// Unit: a share (relative; dimensionless). Set by hand (c900d29); not
+/// swept.
 const OWN_GATE: f32 = 0.25;
 /// The largest relative departure of two middles' interval from the
 /// interval between the half swing's extreme angles.
+///
+/// Unit: a share (relative; dimensionless). Set by hand (1f0c0f3); not
+/// swept.
 const SPAN_GATE: f32 = 0.35;
 /// A half swing's crossings' noise as an angle, rad: over its amplitude,
 /// its duration's relative standard deviation.
+///
+/// Unit: rad. Chosen by a sweep (0.0025, 0.005, 0.01) on lab-check seeds
+/// 12, 14, 15 and 16 while half swings were timed at zero crossings: 0.005
+/// had the most within 5% after 64, 681 (sweep:
+/// docs/tuning.md#filterearlycrossing_noise).
 const CROSSING_NOISE: f32 = 0.005;
 /// The least relative standard deviation of a half swing's duration.
+///
+/// Unit: relative (dimensionless). Compared with 0.02 on the same seeds and
+/// timing: 681 within 5% after 64 rather than 669 (sweep:
+/// docs/tuning.md#filterearlyhalf_rel_floor).
 const HALF_REL_FLOOR: f32 = 0.01;
 /// The largest share of the first half swing's range the angle may move in
 /// its first quarter for the recording's first angle to be its release
 /// ([`Early::released`]).
+///
+/// Unit: a share (of the range). Set by hand (9e95a02); not swept.
 const RELEASE_SHARE: f32 = 0.25;
 
 /// The angles of the last two half swings and the half swings timed.

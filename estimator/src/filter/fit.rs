@@ -29,27 +29,53 @@
 
 /// Steps the fit runs at least (two windows), and on until the period
 /// reads.
+///
+/// Unit: a count (steps). Set by hand at two windows (ff272a2); not swept.
 pub(crate) const FIT_STEPS: u32 = 2 * crate::WINDOW as u32;
 /// Unknowns: `theta_0`, `v`, `a`, `b`, `gamma`.
+///
+/// Unit: a count. Fixed by the equation fitted (module docs).
 const N: usize = 5;
 /// Fewest measurements fitted before a reading.
+///
+/// Unit: a count (measurements). Set by hand (ff272a2); not swept.
 const MIN_ROWS: u16 = 24;
-/// The residuals' standard deviation scale.
+/// The residuals' standard deviation scale: the reported relative standard
+/// deviation of `w0^2` over the least-squares one (the residuals are not
+/// independent: module docs).
+///
+/// Unit: dimensionless (a ratio). Set by hand (ff272a2); not swept.
 const STD_SCALE: f32 = 2.0;
 /// The widest relative standard deviation of `w0^2` read: a looser fit
 /// (less than a period seen, or the swing lost in the noise) is none.
+///
+/// Unit: relative (dimensionless). Set by hand with 8cbaba4, whose figures
+/// are the change's as a whole (off distribution, 3 of 120 long and 3 of
+/// 120 short strings wrong after 64 rather than 21 and 44); not swept.
 const MAX_REL: f32 = 0.1;
 /// The fewest periods seen before a reading.
+///
+/// Unit: dimensionless (periods seen: the time fitted over the period, a
+/// float). Set by hand with 8cbaba4 (less than a period fits the noise as
+/// readily as the swing); not swept.
 const MIN_PERIODS: f32 = 1.0;
 /// The least relative standard deviation of `w0^2`.
+///
+/// Unit: relative (dimensionless). Set by hand (ff272a2); not swept.
 const REL_FLOOR: f32 = 0.01;
 /// The largest half phase `w0 dt / 2` a step may span (8 steps a
 /// period).
+///
+/// Unit: rad (a phase). Set by hand at about 8 steps a period (`pi / 0.4` =
+/// 7.9), where the trapezoids' factor `x / tan x` is 0.95; not swept.
 const MAX_STEP_PHASE: f32 = 0.4;
 /// The widest angle fitted, rad: real rigs swing to 1.5 rad about an
 /// offset of a few hundredths. Beyond it the fit stops (a wider release
 /// is read by the model and the period, as the protocol's blob was
 /// calibrated).
+///
+/// Unit: rad. Set by hand above real rigs' widest swing (1.5 rad); the sine
+/// and cosine series is tested up to it; not swept.
 const MAX_ANGLE: f32 = 1.6;
 
 /// The regression's factor and the integrals it runs on.

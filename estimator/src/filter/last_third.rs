@@ -17,14 +17,26 @@
 
 /// Blocks kept: above the about 10 a last third spans (the latest one is
 /// extended where they are all in use).
+///
+/// Unit: a count (blocks). Derived: `ln(3 / 2) / SPAN_SHARE` = 9.7 blocks
+/// span a last third; 12 leaves room.
 pub(crate) const BLOCKS: usize = 12;
 /// The share of the recording so far a block spans before the next half
 /// swing starts another.
+///
+/// Unit: a share (of the recording's time so far). Set by hand (409e50b);
+/// not swept.
 pub(crate) const SPAN_SHARE: f32 = 1.0 / 24.0;
 /// Parts the window's blocks are split into to see its decay bend
 /// (`super::decay`).
+///
+/// Unit: a count (parts). Set by hand (b581eb7); not swept.
 pub(crate) const PARTS: usize = 3;
 /// The share of the recording so far the window covers: its last third.
+///
+/// Unit: a share (of the recording's time so far). Set by the envelope it
+/// is read against: a swing's envelope is read over its last third
+/// (docs/damping.md); not swept.
 pub(crate) const WINDOW_SHARE: f32 = 1.0 / 3.0;
 
 /// One block's sums, its times from `origin`.

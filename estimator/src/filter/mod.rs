@@ -110,17 +110,20 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 
 /// Largest magnitude a raw measurement may have; larger is refused as not
 /// a real reading (an angle of 1e6 rad is a broken sensor, not a swing).
+///
+/// Unit: the measurement's own (rad for an angle, rad/s for a rate). Set by
+/// hand as a sanity bound far beyond any swing; not swept.
 pub const MAX_ABS_INPUT: f32 = 1.0e6;
 
 /// The offset, as a share of the swing, from which its first subtraction
 /// starts the filter afresh ([`Estimator::reopen_params`]), and from
 /// which it is subtracted from the first two turning points rather than
-/// three; below it the estimate is kept and widened. Within 5% after 64
-/// measurements on lab-check seeds 12, 14, 15 and 16 (offsets to 0.1 rad,
-/// 200 recordings each), from three turning points: afresh at any share,
-/// 519; from 0.1, 548; from 0.2, 564; from 0.4, 558 (within 2% at the end:
-/// 737, 740, 738, 734). From two where large (and not a damping's,
-/// `centre::PAIR_DAMPED_SHARE`): from 0.2, 605 (741).
+/// three; below it the estimate is kept and widened.
+///
+/// Unit: a share (of the swing). Chosen by a sweep (afresh at any share,
+/// 0.1, 0.2, 0.4) on lab-check seeds 12, 14, 15 and 16 (800): 0.2 had the
+/// most within 5% after 64 measurements, 564 from three turning points and
+/// 605 from two (sweep: docs/tuning.md#filterreopen_share).
 pub(crate) const REOPEN_SHARE: f32 = 0.2;
 
 /// The estimator: a fixed-size filter state over one model.

@@ -34,32 +34,57 @@
 
 /// The smallest amplitude read, rad (as the decay's: below it a
 /// tracker's noise makes half swings of its own).
+///
+/// Unit: rad. Set by [`super::decay::MIN_AMPLITUDE`] (set by hand; not
+/// swept).
 pub(crate) const MIN_AMPLITUDE: f32 = super::decay::MIN_AMPLITUDE;
 /// The share of the last amplitude the angle must pass beyond zero for a
 /// crossing to count (at least half of [`MIN_AMPLITUDE`]).
+///
+/// Unit: a share (of the amplitude). Set by hand (4fa11be); not swept.
 pub(crate) const HYSTERESIS: f32 = 0.3;
 /// The largest share of its amplitude a half swing's middle may lie from
 /// zero.
+///
+/// Unit: a share (of the amplitude). Set by hand (4fa11be); not swept.
 pub(crate) const MAX_LEAN: f32 = 0.5;
 /// The half swings a middle's smoothing remembers (each direction's).
+///
+/// Unit: half swings (a count, a float for the smoothing's divisor). Set by
+/// hand (4fa11be); not swept.
 pub(crate) const LEAN_MEMORY: f32 = 8.0;
 /// Periods read before a period is given.
+///
+/// Unit: a count (periods). Derived: two is the fewest whose spread gives a
+/// standard deviation (`m2 / (n - 1)`).
 pub(crate) const MIN_PERIODS: u16 = 2;
 /// The largest relative departure of a period's `r` from `k` (from
 /// [`MIN_PERIODS`] on) that is read.
+///
+/// Unit: relative (a share of `k`). Set by hand (4fa11be); not swept.
 pub(crate) const GATE: f32 = 0.1;
 /// Periods left out in a row that forget a fit of fewer than
 /// [`FORGET_BELOW`] periods.
+///
+/// Unit: a count (periods). Set by hand (4fa11be); not swept.
 pub(crate) const STRAYS: u8 = 3;
-/// See [`STRAYS`].
+/// The fewest periods a fit holds for [`STRAYS`] periods left out in a row
+/// not to forget it.
+///
+/// Unit: a count (periods). Set by hand (4fa11be); not swept.
 pub(crate) const FORGET_BELOW: u16 = 8;
 /// The standard deviation of `k` over the runs' spread, and a floor on
-/// its relative one: on lab-check seeds 12, 14, 15 and 16 (800
-/// recordings), the length's 2-std band covers the truth on 94% of those
-/// with a period (1 and none: 74%; 2 and 5e-4: 96%), and the joined length
-/// on 92%.
+/// its relative one ([`STD_FLOOR`]).
+///
+/// Unit: dimensionless (a ratio). Chosen with [`STD_FLOOR`] by comparing
+/// three pairs on lab-check seeds 12, 14, 15 and 16 (800): at 1.5 and 5e-4
+/// the length's 2-std band covers the truth on 94% of those with a period
+/// (sweep: docs/tuning.md#filterperiodstd_scale).
 pub(crate) const STD_SCALE: f32 = 1.5;
-/// See [`STD_SCALE`].
+/// A floor on `k`'s relative standard deviation (see [`STD_SCALE`]).
+///
+/// Unit: relative (dimensionless). Chosen with [`STD_SCALE`] (sweep:
+/// docs/tuning.md#filterperiodstd_scale).
 pub(crate) const STD_FLOOR: f32 = 5e-4;
 
 /// The crossings so far and the period they give. Times are in steps

@@ -10,19 +10,27 @@ use crate::{Error, LATENT_DIM, PARAM_DIM};
 
 /// How many times the parameters' variances widen when a small offset is
 /// first subtracted: the estimate may move by about three of its standard
-/// deviations. Within 5% after 64 measurements on the real-rig
-/// lab-check's seeds 12, 14, 15 and 16 (800): 1, 593; 2, 618; 3, 629; 4,
-/// 637; 8, 640; 16, 614; 64, 576 (wider, and a bilinear model's `F(q)`
-/// is driven off its trained square before the swings pull it back);
-/// within 2% at the end and wrong and trusted unchanged.
+/// deviations.
+///
+/// Unit: a ratio (of variances; dimensionless). Chosen by a sweep (1 to 64)
+/// on the real-rig lab-check's seeds 12, 14, 15 and 16 (800): 8 had the
+/// most within 5% after 64 measurements, 640 (sweep:
+/// docs/tuning.md#filterunobservedreopen).
 const REOPEN: f32 = 8.0;
 
 /// Measurements in a row refused as outliers at most: the next is taken
 /// (a knock, not a tracker's glitch, moves every measurement after it).
+///
+/// Unit: a count (measurements). Set by hand (f405e4a); not swept.
 const MAX_OUTLIER_RUN: u8 = 3;
 /// The most deviations (the innovation's, on the reported scale) a half
 /// swing's length may lie from the filter's for it to be taken: a knock
 /// or a missed crossing is not.
+///
+/// Unit: dimensionless (standard deviations). Compared on lab-check seeds
+/// 12, 14, 15 and 16 while half swings were timed at zero crossings: 3 gave
+/// 677 within 5% after 64, 5 or none 681 (sweep:
+/// docs/tuning.md#filterunobservedhalf_gate).
 const HALF_GATE: f32 = 5.0;
 
 impl Estimator<'_> {

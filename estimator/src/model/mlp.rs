@@ -8,6 +8,9 @@ use crate::{Error, HIDDEN_WIDTHS};
 /// x86-64 (16 SSE registers of 4): 32 outputs in 8 registers. Elsewhere
 /// (a Cortex-M4F has 32 single-precision registers): 16. The block size
 /// changes no bit of the result, only the loads and loop turns.
+///
+/// Unit: a count (outputs). Derived from the targets' register counts
+/// above; not swept.
 #[cfg(target_arch = "x86_64")]
 const HIDDEN_BLOCK: usize = 32;
 #[cfg(not(target_arch = "x86_64"))]

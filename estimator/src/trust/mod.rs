@@ -33,14 +33,17 @@ pub(crate) use swing::SwingWindow;
 /// The largest relative standard deviation of the period's length that
 /// confirms a length ([`Reason`]).
 ///
-/// On lab-check seeds 12, 14, 15 and 16 (800 recordings), of the 767
-/// lengths within 5% at the end, 678 trusted without it; at 0.002, 0.003
-/// and 0.005 (with [`PERIOD_AGREES`] 3), 687, 689 and 699, none more wrong
-/// and trusted.
+/// Unit: relative (dimensionless). Chosen by a sweep (0.002, 0.003, 0.005)
+/// on lab-check seeds 12, 14, 15 and 16 (800): 0.005 trusted the most of
+/// the right lengths, 699 of 767 rather than 678 without it, none more
+/// wrong and trusted (sweep: docs/tuning.md#trustperiod_sharp).
 pub(crate) const PERIOD_SHARP: f32 = 0.005;
 /// How many standard deviations (the model's and the period's together)
-/// the model's length may lie from the period's to be confirmed by it: at
-/// 2, 695 of the 767 above.
+/// the model's length may lie from the period's to be confirmed by it.
+///
+/// Unit: dimensionless (standard deviations). Chosen with [`PERIOD_SHARP`]
+/// on the same seeds: at 3, 699 of the right trusted; at 2, 695 (sweep:
+/// docs/tuning.md#trustperiod_agrees).
 pub(crate) const PERIOD_AGREES: f32 = 3.0;
 
 /// The share of the period's length by which the model's, further than
@@ -51,27 +54,32 @@ pub(crate) const PERIOD_AGREES: f32 = 3.0;
 /// of 0.3 to 1 1/s, `rig_off_distribution`), 1 wrong and trusted in 120
 /// rather than 2; on lab-check seeds 12, 14, 15 and 16, the right trusted
 /// as without the check.
+///
+/// Unit: a share (of the period's length). The value set by hand; the check
+/// compared with and without it, as above.
 pub(crate) const PERIOD_DISAGREES: f32 = 0.02;
 
 /// The largest relative standard deviation of a period's length that
 /// confirms a length the model's lies apart from: a period that sharp
 /// is the swing's own clock, and a model that disagrees with it is the
-/// one wrong (the period's length is what is reported). On lab-check
-/// seeds 12, 14, 15 and 16 (800), 724 of the right trusted at the end
-/// rather than 720; on seeds 13 and 17 to 21 (1200), 1079 rather than
-/// 1067; none more wrong and trusted, the same at 0.003; off
-/// distribution at most 1 wrong and trusted in 120 per axis.
+/// one wrong (the period's length is what is reported).
+///
+/// Unit: relative (dimensionless). Compared with none and with 0.003 on
+/// lab-check seeds 12, 14, 15 and 16 and on tuning seeds 13 and 17 to 21:
+/// more of the right trusted, none more wrong, the same at 0.003 (sweep:
+/// docs/tuning.md#trustperiod_sure).
 pub(crate) const PERIOD_SURE: f32 = 0.002;
 
 /// The largest standard deviation of the first parameter, as a share of
 /// it, at which a filter whose parameters were reopened (an offset
 /// found) gives a verdict: the share the lab-checks call wrong (5% off).
-/// On lab-check seeds 12, 14, 15 and 16 (800), 2 lengths more than 5%
-/// off are trusted (after 64 or at the end) rather than 6 without it,
-/// 724 of the right at the end rather than 726; on seeds 13 and 17 to
-/// 21 (1200), none rather than 3, 1079 rather than 1083. A filter never
-/// reopened is not held to it: the protocol's blobs are trusted at
-/// deviations of 6% to 18% (their lab's wrong is 20% off).
+/// A filter never reopened is not held to it: the protocol's blobs are
+/// trusted at deviations of 6% to 18% (their lab's wrong is 20% off).
+///
+/// Unit: a share (relative). Set by the lab-checks' bar for wrong (5%), and
+/// compared with none on lab-check seeds 12, 14, 15 and 16 and on tuning
+/// seeds 13 and 17 to 21: fewer wrong and trusted, a few fewer right
+/// (sweep: docs/tuning.md#trustverdict_rel_std).
 pub(crate) const VERDICT_REL_STD: f32 = 0.05;
 
 /// Why an estimate is not trusted: one check of the verdict each.
@@ -139,6 +147,8 @@ pub enum Reason {
 
 impl Reason {
     /// Every reason, in the order the verdict lists them.
+    ///
+    /// No unit (a list). Fixed by [`Reason`]'s variants.
     pub const ALL: [Reason; REASONS] = [
         Reason::Unsettled,
         Reason::NonPhysical,
@@ -196,6 +206,8 @@ impl core::fmt::Display for Reason {
 }
 
 /// How many reasons there are.
+///
+/// Unit: a count. Fixed by [`Reason`]'s variants.
 pub const REASONS: usize = 10;
 
 /// The failed checks, in the order of [`Reason::ALL`].

@@ -139,6 +139,9 @@ pub(crate) struct Spread {
 
 impl Spread {
     /// The largest count (see the type's docs).
+    ///
+    /// Unit: a count (corrections). Derived: `2^24` is where an `f32` count
+    /// stops being exact (the type's docs).
     pub const CAP: u32 = 1 << 24;
 
     pub fn push(&mut self, c: &[f32; PARAM_DIM]) {

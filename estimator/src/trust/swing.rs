@@ -119,6 +119,9 @@ impl SwingWindow {
     /// within 17 degrees of phase of one, where the angle is within
     /// `1 - cos(17 deg)` = 4.5% of the swing: an unevenness of at most
     /// 0.023 (half that) from it alone.
+    ///
+    /// Unit: a share (of the largest rate). Derived from the sampling bound
+    /// above (0.26 at 12 samples a period), rounded up; not swept.
     pub const TURN: f32 = 0.3;
 
     /// Records one measured angle and rate, and from the one merge of the

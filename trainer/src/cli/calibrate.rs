@@ -22,6 +22,11 @@ pub struct Args {
     /// Seed of the held-out sets (map, calibration, check: seed, +1, +2).
     #[arg(long, default_value_t = CalibrateConfig::default().seed)]
     seed: u64,
+    /// Share of the calibration set, smallest swings first, among which
+    /// the smallest trusted swing is sought: the most the swing check may
+    /// flag (default: the blob's family's).
+    #[arg(long)]
+    swing_share: Option<f64>,
 }
 
 /// Runs it.
@@ -37,9 +42,11 @@ pub fn run(a: Args) -> Result<()> {
     let bytes = current.bytes;
     // Held-out rollouts as the blob's training set was drawn (its
     // sidecar's config; the protocol's without one).
+    let base = trainer::export::calibration_for(&trainer::export::config_of(&a.blob));
     let cfg = CalibrateConfig {
         seed: a.seed,
-        ..trainer::export::calibration_for(&trainer::export::config_of(&a.blob))
+        swing_share: a.swing_share.unwrap_or(base.swing_share),
+        ..base
     };
     let (out_bytes, report) = trainer::export::calibrate_with_progress(&bytes, &cfg)?;
     let out = a.out.unwrap_or(a.blob.clone());
