@@ -78,14 +78,13 @@ pub(crate) struct Early {
     /// The last half swing's middle, in steps from the first angle kept
     /// (NaN: none, or the run starts again).
     middle: f32,
-    /// The last half swing's `d` (s) and amplitude (rad).
-    last: Option<(f32, f32)>,
     /// Half swings read, `sum d` and `sum c`.
     n: u16,
     sum_d: f32,
     sum_c: f32,
-    /// The smallest amplitude among them, rad.
+    /// The smallest and the largest amplitude among them, rad.
     least: f32,
+    most: f32,
     /// The period gives its own reading: nothing more is kept.
     done: bool,
     /// A turning point was found.
@@ -101,11 +100,11 @@ impl Default for Early {
             older: 0,
             len: 0,
             middle: f32::NAN,
-            last: None,
             n: 0,
             sum_d: 0.0,
             sum_c: 0.0,
             least: f32::INFINITY,
+            most: 0.0,
             done: false,
             turned: false,
             own: false,
@@ -173,7 +172,6 @@ impl Early {
         let before = self.middle;
         let doubtful = own || self.own;
         self.own = own;
-        self.last = None;
         if let (Some(a), Some((c, span))) = (a, timed)
             && !before.is_nan()
             && c > before
@@ -188,11 +186,11 @@ impl Early {
             let k = self.sum_d / self.sum_c;
             let agrees = self.n == 0 || libm::fabsf(d / c_a - k) <= OWN_GATE * k;
             if !doubtful || agrees {
-                self.last = Some((d, a));
                 self.n = self.n.saturating_add(1);
                 self.sum_d += d;
                 self.sum_c += c_a;
                 self.least = self.least.min(a);
+                self.most = self.most.max(a);
             }
         }
         // The last half swing's angles become the older ones.
@@ -267,24 +265,27 @@ impl Early {
         Some((at, (end - start) as f32))
     }
 
-    /// `w0^2` (1/s^2) from the last half swing alone and its relative
-    /// standard deviation: twice `sqrt((CROSSING_NOISE / a)^2 +
-    /// HALF_REL_FLOOR^2)`, `a` its amplitude.
-    pub(crate) fn half_reading(&self) -> Option<(f32, f32)> {
-        let (d, a) = self.last?;
-        let w = core::f32::consts::PI / (agm_of_cos_half(a) * d);
-        Some((w * w, relative(CROSSING_NOISE / a)))
-    }
-
     /// `w0^2` (1/s^2) from the half swings read and its relative standard
     /// deviation: the noise of the first middle and the last over the
-    /// half swings' number (their durations add up between them).
+    /// half swings' number (their durations add up between them), and
+    /// the damping's shift of the frequency timed, `zeta^2` (`w_d^2 =
+    /// w0^2 (1 - zeta^2)`), `zeta` read from the amplitudes' decay: at most
+    /// `exp(-pi zeta)` a half swing, so `zeta <= ln(most / least) / (pi (n -
+    /// 1))` (noise in the amplitudes makes it larger: a bound).
     pub(crate) fn reading(&self) -> Option<(f32, f32)> {
         if self.done || self.n == 0 || self.sum_d <= 0.0 {
             return None;
         }
         let w = core::f32::consts::PI * self.sum_c / self.sum_d;
-        Some((w * w, relative(CROSSING_NOISE / (self.least * f32::from(self.n)))))
+        let n = f32::from(self.n);
+        let timing = relative(CROSSING_NOISE / (self.least * n));
+        let zeta = if self.n > 1 && self.least > 0.0 {
+            libm::logf(self.most / self.least) / (core::f32::consts::PI * (n - 1.0))
+        } else {
+            0.0
+        };
+        let damping = zeta * zeta;
+        Some((w * w, libm::sqrtf(timing * timing + damping * damping)))
     }
 }
 

@@ -200,10 +200,6 @@ pub struct Estimator<'m> {
     /// Updates before which a verdict is not given: a window after the
     /// parameters were started afresh (0: never).
     afresh_until: u32,
-    /// The parameters were reopened and the period has not yet given its
-    /// own reading: each half swing timed is taken as a measurement of the
-    /// length ([`Estimator::take_half_period`]).
-    half_pending: bool,
     /// The swing's decay ([`StepOutput::q_factor`]).
     decay: Decay,
 }
@@ -243,7 +239,6 @@ impl<'m> Estimator<'m> {
             source_dt: 0.0,
             burn_until: 0,
             afresh_until: 0,
-            half_pending: false,
             g_known: !model
                 .blob()
                 .body
@@ -507,9 +502,6 @@ impl<'m> Estimator<'m> {
                 (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
                 if !was && self.centre.subtracting() {
                     self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
-                }
-                if self.half_pending {
-                    self.take_half_period();
                 }
             }
         }

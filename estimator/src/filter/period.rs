@@ -86,6 +86,20 @@ pub(crate) const STD_SCALE: f32 = 1.5;
 /// Unit: relative (dimensionless). Chosen with [`STD_SCALE`] (sweep:
 /// docs/tuning.md#filterperiodstd_scale).
 pub(crate) const STD_FLOOR: f32 = 5e-4;
+/// The share of the range of the amplitude's correction `c` over the
+/// half swings read that `k`'s relative standard deviation carries
+/// whatever the spread: a swing that decays (or grows) is timed at
+/// amplitudes read from turning points, and what moves them moves every
+/// period's the same way, so the spread does not show it. An undamped
+/// swing's `c` stays put and adds nothing.
+///
+/// Unit: a share (of a range of `c`, dimensionless). Compared with 0.05
+/// and none on lab-check seeds 11 and 12: the widest the period can be and
+/// still confirm wide swings (`trust::PERIOD_SHARP`); the 2-std band at
+/// the end of swings released at 1 rad or more then covers 12 of 12 and
+/// 19 of 23 rather than 9 and 15 (sweep:
+/// docs/tuning.md#filterperiodamplitude_share).
+pub(crate) const AMPLITUDE_SHARE: f32 = 0.02;
 
 /// The crossings so far and the period they give. Times are in steps
 /// from the step the last turning point was found at (exact in `f32`
@@ -128,6 +142,8 @@ pub(crate) struct Period {
     /// The mean of the periods' `r` and its squared deviation (Welford).
     mean: f32,
     m2: f32,
+    /// The least and the largest `c` read.
+    c_range: [f32; 2],
     /// Periods left out in a row.
     strays: u8,
     /// `w0^2` and its relative standard deviation, after the last period.
@@ -157,6 +173,7 @@ impl Default for Period {
             sum_c: 0.0,
             mean: 0.0,
             m2: 0.0,
+            c_range: [f32::INFINITY, f32::NEG_INFINITY],
             strays: 0,
             read: None,
         }
@@ -310,6 +327,8 @@ impl Period {
         self.n = self.n.saturating_add(1);
         self.sum_d += d;
         self.sum_c += c;
+        let [lo, hi] = &mut self.c_range;
+        (*lo, *hi) = (lo.min(c), hi.max(c));
         let delta = r - self.mean;
         self.mean += delta / f32::from(self.n);
         self.m2 += delta * (r - self.mean);
@@ -336,7 +355,9 @@ impl Period {
         let few = 1.0 + 4.0 / ((n - 1.0) * libm::sqrtf(n - 1.0));
         let run_std = libm::sqrtf(f32::from(self.runs) * var_r) * 2.0 * self.sum_c / n;
         let rel = STD_SCALE * few * run_std / self.sum_d;
-        let rel = libm::sqrtf(rel * rel + STD_FLOOR * STD_FLOOR);
+        let [lo, hi] = self.c_range;
+        let amplitude = AMPLITUDE_SHARE * (hi - lo).max(0.0);
+        let rel = libm::sqrtf(rel * rel + amplitude * amplitude + STD_FLOOR * STD_FLOOR);
         let w = core::f32::consts::PI * self.sum_c / self.sum_d;
         // w0^2 = pi^2 / k^2: twice k's relative deviation.
         Some((w * w, 2.0 * rel))

@@ -23,16 +23,6 @@ const REOPEN: f32 = 8.0;
 ///
 /// Unit: a count (measurements). Set by hand (f405e4a); not swept.
 const MAX_OUTLIER_RUN: u8 = 3;
-/// The most deviations (the innovation's, on the reported scale) a half
-/// swing's length may lie from the filter's for it to be taken: a knock
-/// or a missed crossing is not.
-///
-/// Unit: dimensionless (standard deviations). Compared on lab-check seeds
-/// 12, 14, 15 and 16 while half swings were timed at zero crossings: 3 gave
-/// 677 within 5% after 64, 5 or none 681 (sweep:
-/// docs/tuning.md#filterunobservedhalf_gate).
-const HALF_GATE: f32 = 5.0;
-
 impl Estimator<'_> {
     /// Advances the filter one model step without a measurement (a sample
     /// lost, or a gap in the time stamps): `g = F g`, `P = F P F^T + Q`.
@@ -156,7 +146,6 @@ impl Estimator<'_> {
         if afresh {
             self.afresh_until = self.t.saturating_add(crate::WINDOW as u32);
         }
-        self.half_pending = self.period.omega_squared().is_none();
         self.spread = Spread::default();
         self.consistency = Consistency::default();
         // What the states and the swings showed the forgotten estimate,
@@ -166,67 +155,6 @@ impl Estimator<'_> {
         self.swing = self.swing.keep_widest();
         self.held = None;
         self.kinematics.gap();
-    }
-
-    /// The last half swing timed ([`super::early`]), as a measurement of
-    /// the length.
-    ///
-    /// Taken after the parameters were reopened, each half swing until the
-    /// period gives its own reading: a filter started afresh half a period
-    /// to a period into the swing has a few dozen measurements at 64, and
-    /// the half swings it missed are timed at their turning points'
-    /// middle. Its `w0^2` reads as the length at the blob's gravity, with
-    /// the half swing's relative standard deviation, on the filter's own
-    /// scale (the reported deviations over the blob's calibrated scale);
-    /// one scalar update of the length's coordinate, refused beyond
-    /// [`HALF_GATE`] deviations. Within 5% after 64 on lab-check seeds 12,
-    /// 14, 15 and 16 (800, offsets to 0.1 rad): 695; 640 without; 681 with
-    /// the half swings timed where they cross zero (the period's timing:
-    /// the first half swing only, 676; `CROSSING_NOISE` 0.0025, 676; 0.01,
-    /// 668; `HALF_REL_FLOOR` 0.02, 669; a gate of 3, 677, of 5 or none,
-    /// 681). Within 2% at the end 760, 755 without.
-    #[cold]
-    #[inline(never)]
-    pub(super) fn take_half_period(&mut self) {
-        let Some((w2, rel)) = self.early.half_reading() else {
-            return;
-        };
-        self.half_pending = self.period.omega_squared().is_none();
-        let body = &self.model.blob().body;
-        let Some(spec) = body.params.first().filter(|s| s.declared && s.scales_with_g) else {
-            return;
-        };
-        let length = body.rig.length_at(body.g, w2);
-        if !(spec.physical(length) && self.bridged) {
-            return;
-        }
-        let q = spec.coordinate(length);
-        // On the filter's own scale: its deviations are the reported ones
-        // over the blob's calibrated scale.
-        let scale = body.trust.std_scale.first().copied().unwrap_or(1.0);
-        let sigma_q = rel * length / (libm::fabsf(spec.slope(q)) * scale);
-        let Some(col) = self.p.get(LATENT_DIM).copied() else {
-            return;
-        };
-        let (Some(pll), Some(ml)) = (col.get(LATENT_DIM), self.mean.get(LATENT_DIM)) else {
-            return;
-        };
-        let s = pll + sigma_q * sigma_q;
-        let nu = q - ml;
-        // The gate on the reported scale.
-        let gate = HALF_GATE * scale;
-        if !(s > 0.0 && nu.is_finite() && nu * nu <= gate * gate * s) {
-            return;
-        }
-        for (m, c) in self.mean.iter_mut().zip(&col) {
-            *m += c / s * nu;
-        }
-        for (row, ci) in self.p.iter_mut().zip(&col) {
-            for (v, cj) in row.iter_mut().zip(&col) {
-                *v -= ci * cj / s;
-            }
-        }
-        self.param_std = sqrt_diag(&self.p, LATENT_DIM);
     }
 
     /// Whether a measurement whose normalised innovation squared is `nis`

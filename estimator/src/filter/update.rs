@@ -37,7 +37,6 @@ impl Estimator<'_> {
             self.held = None;
             self.outlier = false;
             self.innovation = None;
-            self.half_pending = false;
             self.observe(x);
             return Ok(self.output([0.0; PARAM_DIM]));
         }

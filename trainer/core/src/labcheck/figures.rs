@@ -21,6 +21,10 @@ pub struct Counts {
     pub trusted_of_right: [usize; 2],
     /// Median relative error at the end.
     pub median_end_error: f64,
+    /// The truth within 2 standard deviations of the length: after the
+    /// first window, and at the end.
+    #[serde(default)]
+    pub covered: [usize; 2],
     /// The learned model's own length within 2% at the end, before the
     /// swing's period is joined with it.
     #[serde(default)]
@@ -30,19 +34,34 @@ pub struct Counts {
     pub model_median_end_error: f64,
 }
 
-/// What one reader (the blob or the peer) made of a recording: the
-/// relative error and whether trusted, after the first [`WINDOW`]
-/// measurements and at the end.
-type Read = [(f64, bool); 2];
+/// What one reader (the blob or the peer) made of a recording, after the
+/// first [`WINDOW`] measurements and at the end: the relative error,
+/// whether trusted, and whether the truth lies within 2 of its standard
+/// deviations.
+type Read = [(f64, bool, bool); 2];
+
+/// Whether `length` lies within 2 `std` of `estimate` (a NaN: no).
+fn within_2_std(estimate: f64, std: f64, length: f64) -> bool {
+    (estimate - length).abs() <= 2.0 * std
+}
 
 /// The blob's reads of `o`.
 fn blob_read(o: &Outcome) -> Read {
-    [&o.first, &o.end].map(|a| (a.error(o.length), a.trust.is_trusted()))
+    [&o.first, &o.end].map(|a| {
+        let covered = within_2_std(f64::from(a.length), f64::from(a.std), o.length);
+        (a.error(o.length), a.trust.is_trusted(), covered)
+    })
 }
 
 /// The physics peer's reads of `o`.
 fn peer_read(o: &Outcome) -> Read {
-    [&o.peer_first, &o.peer_end].map(|r| (r.error(o.length), r.trusted()))
+    [&o.peer_first, &o.peer_end].map(|r| {
+        (
+            r.error(o.length),
+            r.trusted(),
+            within_2_std(r.length, r.std, o.length),
+        )
+    })
 }
 
 impl Counts {
@@ -51,8 +70,10 @@ impl Counts {
         let mut errors = Vec::new();
         for o in group {
             c.n += 1;
-            let [(e1, t1), (e2, t2)] = read(o);
+            let [(e1, t1, c1), (e2, t2, c2)] = read(o);
             errors.push(e2);
+            c.covered[0] += usize::from(c1);
+            c.covered[1] += usize::from(c2);
             c.end_within_2 += usize::from(e2 <= 0.02);
             c.first_within_5 += usize::from(e1 <= 0.05);
             let wrong = |e: f64, trusted: bool| e > 0.05 && trusted;
@@ -203,11 +224,13 @@ pub fn markdown(f: &Figures) -> String {
             pct(c.wrong_trusted, c.n),
             pct(c.trusted_of_right[0], c.trusted_of_right[1]),
             format!("{:.2}%", 100.0 * c.median_end_error),
+            pct(c.covered[0], c.n),
+            pct(c.covered[1], c.n),
         ]
     };
     for (by, rows) in &f.tables {
         s.push_str(&format!(
-            "\nBy {by}:\n\n| recordings | n | within 2% at the end | peer | within 5% after 64 | peer | more than 5% off and trusted | peer | trusted, of those within 5% at the end | peer | median error at the end | peer | model alone: within 2% at the end | its median error |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+            "\nBy {by}:\n\n| recordings | n | within 2% at the end | peer | within 5% after 64 | peer | more than 5% off and trusted | peer | trusted, of those within 5% at the end | peer | median error at the end | peer | truth within 2 std after 64 | peer | truth within 2 std at the end | peer | model alone: within 2% at the end | its median error |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n"
         ));
         for row in rows.iter().filter(|r| r.blob.n > 0) {
             s.push_str(&format!("| {} | {} |", row.name, row.blob.n));
