@@ -98,6 +98,7 @@ internal! {
 internal! {
     pub mod rig;
 }
+mod swing;
 internal! {
     pub mod trust;
 }

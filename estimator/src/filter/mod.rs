@@ -69,16 +69,10 @@
 
 use nalgebra::{ArrayStorage, SMatrix, SVector};
 
-mod centre;
-mod decay;
-mod early;
-mod fit;
 mod full;
 mod kernels;
-mod last_third;
 mod observe;
 mod output;
-mod period;
 mod unobserved;
 mod scheduled;
 mod two_stage;
@@ -86,11 +80,7 @@ mod update;
 
 pub use output::StepOutput;
 
-use centre::Centre;
-use decay::Decay;
-use early::Early;
-use fit::Fit;
-use period::Period;
+use crate::swing::{Centre, Decay, Early, Fit, Period, REOPEN_SHARE};
 use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, tail};
 
 use crate::model::{Model, Tail};
@@ -115,16 +105,6 @@ pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 /// hand as a sanity bound far beyond any swing; not swept.
 pub const MAX_ABS_INPUT: f32 = 1.0e6;
 
-/// The offset, as a share of the swing, from which its first subtraction
-/// starts the filter afresh ([`Estimator::reopen_params`]), and from
-/// which it is subtracted from the first two turning points rather than
-/// three; below it the estimate is kept and widened.
-///
-/// Unit: a share (of the swing). Chosen by a sweep (afresh at any share,
-/// 0.1, 0.2, 0.4) on lab-check seeds 12, 14, 15 and 16 (800): 0.2 had the
-/// most within 5% after 64 measurements, 564 from three turning points and
-/// 605 from two (sweep: docs/tuning.md#filterreopen_share).
-pub(crate) const REOPEN_SHARE: f32 = 0.2;
 
 /// The estimator: a fixed-size filter state over one model.
 ///
@@ -493,7 +473,7 @@ impl<'m> Estimator<'m> {
                 self.early.turn(timed, self.centre.middle(), dt);
                 if self.period.omega_squared().is_some() {
                     self.early.finish();
-                    if self.t >= fit::FIT_STEPS {
+                    if self.t >= crate::swing::fit::FIT_STEPS {
                         self.fit.finish();
                     }
                 }

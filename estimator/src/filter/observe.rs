@@ -2,7 +2,8 @@
 //! estimate held while it is small), the envelope, the kinematics; and
 //! the smallest swing read as trusted.
 
-use super::{Estimator, decay, tail};
+use super::{Estimator, tail};
+use crate::swing::decay;
 use crate::State;
 
 impl Estimator<'_> {
@@ -15,7 +16,7 @@ impl Estimator<'_> {
     /// The smallest swing read as trusted: the blob's calibrated one; for
     /// a swing never that wide, once the decay has read
     /// [`decay::LONG_HALVES`] half swings, the smallest it reads
-    /// ([`decay::MIN_AMPLITUDE`]) where that is less. A swing once wider
+    /// ([`crate::swing::MIN_AMPLITUDE`]) where that is less. A swing once wider
     /// is held below the blob's as before (read on down to 0.03 rad, an
     /// hour at Q = 5000 ended 0.61% off rather than 0.28%).
     pub(super) fn swing_floor(&self) -> f32 {
@@ -23,9 +24,9 @@ impl Estimator<'_> {
         let never_wide = self.swing.widest().is_none_or(|w| w < min_swing);
         if never_wide
             && self.decay.halves_read() >= decay::LONG_HALVES
-            && decay::MIN_AMPLITUDE < min_swing
+            && crate::swing::MIN_AMPLITUDE < min_swing
         {
-            decay::MIN_AMPLITUDE
+            crate::swing::MIN_AMPLITUDE
         } else {
             min_swing
         }

@@ -1,6 +1,7 @@
 //! What one step reports.
 
-use super::{Estimator, fit};
+use super::Estimator;
+use crate::swing::fit;
 use super::kernels::tail;
 use crate::blob::ParamSpec;
 use crate::trust::{self, Checks, Trust};

@@ -19,7 +19,6 @@
 //! window one `u64` of flags.
 
 mod running;
-mod swing;
 
 use heapless::Vec;
 
@@ -28,7 +27,7 @@ internal! {
     pub use running::consistency_statistic;
 }
 pub(crate) use running::{Consistency, EnvelopeWindow, Kinematics, Spread};
-pub(crate) use swing::SwingWindow;
+pub(crate) use crate::swing::SwingWindow;
 
 /// The largest relative standard deviation of the period's length that
 /// confirms a length ([`Reason`]).

@@ -36,7 +36,10 @@
 //! third's its bend ([`bend`]: how far the decay rates of its parts
 //! differ, where a line through a curve reads `Q` off).
 
-use super::last_third::{LastThird, PARTS, Sums};
+mod last_third;
+
+use super::MIN_AMPLITUDE;
+use last_third::{LastThird, PARTS, Sums};
 
 /// The least memory, half swings: a half swing keeps `1 - 1 / memory` of
 /// its weight for each one after it.
@@ -74,12 +77,6 @@ pub(crate) const LONG_HALVES: u16 = 12;
 /// lab recordings of seeds 29 and 37: 0.08 kept the most `Q` within 25%
 /// (sweep: docs/tuning.md#filterdecayhold).
 pub(crate) const HOLD: f32 = 0.08;
-/// The smallest amplitude read, rad: below it a tracker's noise and a
-/// rig at rest make half swings of their own.
-///
-/// Unit: rad. Set by hand (c1fc0a9); not swept. The period and the first
-/// half swings read it too (`period::MIN_AMPLITUDE`).
-pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
 /// The smallest amplitude the last third's fit reads, rad (a swing's
 /// envelope reads to the tracker's noise).
 ///
@@ -389,11 +386,17 @@ mod tests {
         // `Q = omega / (2 gamma) = pi a / (2 drop)` at the swing `a`.
         let truth = core::f32::consts::PI * swing / (2.0 * drop);
         assert!(q > 2.0 * truth, "{q} at {swing}: the truth {truth}");
-        assert!((q - truth).abs() <= 2.0 * std, "{q} +- {std}: the truth {truth}");
+        assert!(
+            (q - truth).abs() <= 2.0 * std,
+            "{q} +- {std}: the truth {truth}"
+        );
         let w = decay.window.sums(decay.clock);
         let (_, fit_std, _) = fit(&w, w.sd / w.s0).unwrap();
         let alone = libm::hypotf(fit_std, SPREAD * q);
-        assert!((q - truth).abs() > 2.0 * alone, "{q} +- {alone}: the truth {truth}");
+        assert!(
+            (q - truth).abs() > 2.0 * alone,
+            "{q} +- {alone}: the truth {truth}"
+        );
     }
 
     /// Drag: `a = a0 / (1 + beta k)` over half swings `k`, whose `Q` rises

@@ -32,12 +32,8 @@
 //! `k` (a missed or spurious crossing, a tracker's glitch) is left out
 //! and ends the run, as does a step without a measurement.
 
-/// The smallest amplitude read, rad (as the decay's: below it a
-/// tracker's noise makes half swings of its own).
-///
-/// Unit: rad. Set by [`super::decay::MIN_AMPLITUDE`] (set by hand; not
-/// swept).
-pub(crate) const MIN_AMPLITUDE: f32 = super::decay::MIN_AMPLITUDE;
+use super::{MIN_AMPLITUDE, agm_of_cos_half};
+
 /// The share of the last amplitude the angle must pass beyond zero for a
 /// crossing to count (at least half of [`MIN_AMPLITUDE`]).
 ///
@@ -193,7 +189,11 @@ impl Period {
         } else if side * x > 0.0 {
             self.pending = f32::NAN;
         }
-        let beyond = if self.side == 0 { libm::fabsf(x) } else { -side * x };
+        let beyond = if self.side == 0 {
+            libm::fabsf(x)
+        } else {
+            -side * x
+        };
         if beyond >= self.hysteresis {
             if !self.pending.is_nan() {
                 if self.crossed.is_nan() {
@@ -364,17 +364,6 @@ impl Period {
     }
 }
 
-/// `AGM(1, cos(a / 2))`: a pendulum's small-swing half period over its
-/// half period at amplitude `a` (four steps: converged to f32 for any
-/// amplitude below 2.5 rad).
-pub(crate) fn agm_of_cos_half(a: f32) -> f32 {
-    let (mut x, mut y) = (1.0f32, libm::cosf(0.5 * a));
-    for _ in 0..4 {
-        (x, y) = (0.5 * (x + y), libm::sqrtf(x * y));
-    }
-    0.5 * (x + y)
-}
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -420,7 +409,10 @@ mod tests {
         let truth = (w / agm_of_cos_half(a)) * (w / agm_of_cos_half(a));
         for (c, glitch) in [(0.0, 0.0), (0.01, 0.0), (0.0, 0.1)] {
             let (w2, rel) = read(a, w, c, 0.04, 2000, glitch);
-            assert!((w2 / truth - 1.0).abs() < 2e-4, "{c} {glitch}: {w2} {truth}");
+            assert!(
+                (w2 / truth - 1.0).abs() < 2e-4,
+                "{c} {glitch}: {w2} {truth}"
+            );
             assert!(rel > 0.0 && rel < 2e-3, "{c} {glitch}: {w2} {truth} {rel}");
         }
         // Nothing before four half swings; nothing of a swing below 0.03.
@@ -450,7 +442,13 @@ mod tests {
         for _ in 0..1500 {
             for _ in 0..sub {
                 let h = dt / sub as f32;
-                let friction = if v > 0.0 { mu } else if v < 0.0 { -mu } else { 0.0 };
+                let friction = if v > 0.0 {
+                    mu
+                } else if v < 0.0 {
+                    -mu
+                } else {
+                    0.0
+                };
                 v += (-w * w * libm::sinf(x) - friction) * h;
                 x += v * h;
             }

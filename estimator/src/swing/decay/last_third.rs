@@ -93,11 +93,7 @@ impl LastThird {
     pub(crate) fn push(&mut self, a: f32, length: f32, at: f32) {
         let start = (1.0 - WINDOW_SHARE) * at;
         // Blocks that began before the last third have left it for good.
-        let gone = self
-            .kept()
-            .iter()
-            .take_while(|b| b.origin < start)
-            .count();
+        let gone = self.kept().iter().take_while(|b| b.origin < start).count();
         let left = self.len.saturating_sub(gone);
         for i in 0..left {
             if let Some(b) = self.blocks.get(i + gone).copied()

@@ -23,7 +23,7 @@
 //! It keeps angles only until the period gives its own reading: then it
 //! costs a comparison a step.
 
-use super::period::{agm_of_cos_half, MIN_AMPLITUDE};
+use super::{MIN_AMPLITUDE, agm_of_cos_half};
 
 /// Measured angles kept: the last two half swings' (between the findings
 /// of their turning points) of a 3 m string at 0.04 s; a longer half swing
@@ -219,14 +219,20 @@ impl Early {
     fn released(&self) -> Option<f32> {
         let kept = self.kept.get(..usize::from(self.len))?;
         let x0 = *kept.first()?;
-        let (far, _) = kept.iter().enumerate().fold((0, 0.0f32), |(jb, db), (j, x)| {
-            let d = libm::fabsf(x - x0);
-            if d > db { (j, d) } else { (jb, db) }
-        });
+        let (far, _) = kept
+            .iter()
+            .enumerate()
+            .fold((0, 0.0f32), |(jb, db), (j, x)| {
+                let d = libm::fabsf(x - x0);
+                if d > db { (j, d) } else { (jb, db) }
+            });
         let xf = *kept.get(far)?;
         let range = libm::fabsf(xf - x0);
         let quarter = *kept.get(far / 4)?;
-        if far < 4 || 0.5 * range < MIN_AMPLITUDE || libm::fabsf(quarter - x0) > RELEASE_SHARE * range {
+        if far < 4
+            || 0.5 * range < MIN_AMPLITUDE
+            || libm::fabsf(quarter - x0) > RELEASE_SHARE * range
+        {
             return None;
         }
         let (level, dir) = (0.5 * (x0 + xf), if xf > x0 { 1.0 } else { -1.0 });
@@ -239,7 +245,11 @@ impl Early {
     fn own_turns(&self) -> Option<(f32, f32)> {
         let kept = self.kept.get(..usize::from(self.len))?;
         let older = usize::from(self.older);
-        let dir = if kept.last()? > kept.get(older)? { 1.0 } else { -1.0 };
+        let dir = if kept.last()? > kept.get(older)? {
+            1.0
+        } else {
+            -1.0
+        };
         let start = extreme(kept, 0, older, -dir)?;
         if start + 1 >= older {
             return None;
@@ -247,7 +257,9 @@ impl Early {
         let end = extreme(kept, older, kept.len(), dir)?;
         let (x1, x2) = (*kept.get(start)?, *kept.get(end)?);
         let a = 0.5 * libm::fabsf(x2 - x1);
-        (MIN_AMPLITUDE..3.0).contains(&a).then_some((0.5 * (x1 + x2), a))
+        (MIN_AMPLITUDE..3.0)
+            .contains(&a)
+            .then_some((0.5 * (x1 + x2), a))
     }
 
     /// Where the angles kept crossed `level` between the last two turning
@@ -259,7 +271,11 @@ impl Early {
         let older = usize::from(self.older);
         // The direction of the half swing: the angle is past its turn.
         let dir = if kept.last()? > &level { 1.0 } else { -1.0 };
-        let start = if older > 0 { extreme(kept, 0, older, -dir)? } else { 0 };
+        let start = if older > 0 {
+            extreme(kept, 0, older, -dir)?
+        } else {
+            0
+        };
         let end = extreme(kept, older, kept.len(), dir)?;
         let at = crossing_in(kept.get(start..=end)?, start, level, dir)?;
         Some((at, (end - start) as f32))
@@ -297,7 +313,11 @@ fn extreme(kept: &[f32], from: usize, to: usize, sign: f32) -> Option<usize> {
         .iter()
         .enumerate()
         .fold((0, f32::NEG_INFINITY), |(jb, vb), (j, v)| {
-            if sign * v > vb { (j, sign * v) } else { (jb, vb) }
+            if sign * v > vb {
+                (j, sign * v)
+            } else {
+                (jb, vb)
+            }
         });
     v.is_finite().then_some(from + j)
 }
@@ -350,14 +370,22 @@ mod tests {
                 let now = c + a * libm::cosf(w * t);
                 turns = [turns[1], now];
                 let first = k == 20;
-                let level = if first { 0.5 * (c + a + now) } else { 0.5 * (turns[0] + turns[1]) };
+                let level = if first {
+                    0.5 * (c + a + now)
+                } else {
+                    0.5 * (turns[0] + turns[1])
+                };
                 early.turn(Some(a), level, dt);
             }
         }
         let (w2, rel) = early.reading().unwrap();
         // A swing at amplitude `a` is slower than `w0` by `AGM(1, cos(a / 2))`.
         let w0 = w / agm_of_cos_half(a);
-        assert!((w2 / (w0 * w0) - 1.0).abs() < 1e-3, "{w2} against {}", w0 * w0);
+        assert!(
+            (w2 / (w0 * w0) - 1.0).abs() < 1e-3,
+            "{w2} against {}",
+            w0 * w0
+        );
         assert_eq!(early.n, 4);
         assert!(rel > 0.0 && rel < 0.1);
         early.finish();

@@ -40,7 +40,7 @@
 //! error (the parabola's on a wide swing, the noise's) is as large, and
 //! it moves neither the length nor the unevenness at the smallest trusted
 //! swing by more than the noise does (a clean swing is fed as it is).
-//! An offset that is a large share of the swing ([`super::REOPEN_SHARE`])
+//! An offset that is a large share of the swing ([`REOPEN_SHARE`])
 //! is subtracted sooner, from the middle of the first two turning points
 //! (a period into the swing: within 5% after 64 measurements, 605 of 800
 //! on lab-check seeds 12, 14, 15 and 16 rather than 564). Where the
@@ -52,7 +52,16 @@
 //! When it first is, the estimator forgets what it learned about the
 //! parameters from the uncorrected angles (`Estimator::reopen_params`).
 
-use super::REOPEN_SHARE;
+/// The offset, as a share of the swing, from which its first subtraction
+/// starts the filter afresh (`Estimator::reopen_params`), and from
+/// which it is subtracted from the first two turning points rather than
+/// three; below it the estimate is kept and widened.
+///
+/// Unit: a share (of the swing). Chosen by a sweep (afresh at any share,
+/// 0.1, 0.2, 0.4) on lab-check seeds 12, 14, 15 and 16 (800): 0.2 had the
+/// most within 5% after 64 measurements, 564 from three turning points and
+/// 605 from two (sweep: docs/tuning.md#filterreopen_share).
+pub(crate) const REOPEN_SHARE: f32 = 0.2;
 
 /// The share of the last half swing's largest rate that the rate must
 /// pass the other way to end a half swing.
@@ -306,7 +315,7 @@ impl Centre {
     /// half a period before the first triple. A half swing's damping moves
     /// the middle towards `t1` by half the amplitude it loses: a middle on
     /// the other side of zero from `t1` is an offset at least that large
-    /// from [`super::REOPEN_SHARE`] of the half swing on; one on its side,
+    /// from [`REOPEN_SHARE`] of the half swing on; one on its side,
     /// from [`PAIR_DAMPED_SHARE`]. A smaller middle waits for the triple.
     fn pair(&mut self, t1: f32, t2: f32) {
         let (c, half) = (0.5 * (t1 + t2), 0.5 * libm::fabsf(t2 - t1));
@@ -544,7 +553,11 @@ mod tests {
             let mut turns = 0;
             for k in 0..70u32 {
                 let x = w * k as f32 / per_period + phase;
-                let rate = if k == 0 && released { -0.01 } else { -a * w * libm::sinf(x) };
+                let rate = if k == 0 && released {
+                    -0.01
+                } else {
+                    -a * w * libm::sinf(x)
+                };
                 if centre.push(a * libm::cosf(x), rate).is_some() {
                     if let Some(g) = given.get_mut(turns) {
                         *g = centre.released_swing();

@@ -188,7 +188,11 @@ impl Fit {
     /// The row `x` with target `y` (weight 1) rotated into `D` and `U`.
     fn add(&mut self, mut x: [f32; N], mut y: f32) {
         let mut w = 1.0f32;
-        let rows = self.d.iter_mut().zip(self.u.iter_mut()).zip(self.z.iter_mut());
+        let rows = self
+            .d
+            .iter_mut()
+            .zip(self.u.iter_mut())
+            .zip(self.z.iter_mut());
         for (k, ((dk, uk), zk)) in rows.enumerate() {
             // The row is taken up whole (the first rows fill `D`).
             if w == 0.0 {
@@ -245,7 +249,11 @@ impl Fit {
         }
         // The rows between a source's frames are interpolations: the
         // independent ones are fewer by `h / dt`.
-        let rel = if source_dt > dt { rel * libm::sqrtf(source_dt / dt) } else { rel };
+        let rel = if source_dt > dt {
+            rel * libm::sqrtf(source_dt / dt)
+        } else {
+            rel
+        };
         // Less than [`MIN_PERIODS`] seen fits the noise as readily as the swing.
         let seen = self.t * libm::sqrtf(w2) / core::f32::consts::TAU;
         (rel <= MAX_REL && seen >= MIN_PERIODS).then_some((w2, rel))
