@@ -58,8 +58,8 @@
 //! # Ok::<(), estimator::Error>(())
 //! ```
 //!
-//! The filter's notation (`F`, `H`, `Q`, `R`, `P`) is defined once, in the
-//! `filter` module's docs (`src/filter/mod.rs`).
+//! The filter's notation (`F`, `H`, `Q`, `R`, `P`) is defined once, in
+//! [`kalman`]'s docs.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -89,6 +89,7 @@ macro_rules! internal {
 
 pub mod blob;
 mod error;
+pub mod kalman;
 internal! {
     pub mod filter;
 }
@@ -104,7 +105,8 @@ internal! {
 }
 
 pub use error::Error;
-pub use filter::{AugMatrix, AugVector, Estimator, MAX_ABS_INPUT, StepOutput};
+pub use filter::{Estimator, MAX_ABS_INPUT, StepOutput};
+pub use kalman::{AugMatrix, AugVector};
 pub use model::Model;
 pub use rig::{Rig, UnknownRig};
 pub use trust::{Reason, Reasons, Trust};

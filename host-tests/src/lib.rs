@@ -74,9 +74,6 @@ pub use trainer_core::reference;
 /// The largest difference between two covariances, relative to the
 /// largest entry of `reference`: how far the filter's two-stage form (on
 /// the gain schedule's tail) is from the full recursion.
-pub fn covariance_gap(
-    p: &estimator::filter::AugMatrix,
-    reference: &estimator::filter::AugMatrix,
-) -> f32 {
+pub fn covariance_gap(p: &estimator::AugMatrix, reference: &estimator::AugMatrix) -> f32 {
     (p - reference).amax() / reference.amax().max(f32::MIN_POSITIVE)
 }

@@ -576,10 +576,7 @@ fn raw_or_gap() -> impl Strategy<Value = Op> {
 /// the first measurement is checked so), or finite coordinates and
 /// standard deviations and estimates that are never NaN. Returns `P`
 /// after an accepted operation.
-fn check(
-    op: &Op,
-    est: &mut Estimator<'_>,
-) -> Result<Option<estimator::filter::AugMatrix>, TestCaseError> {
+fn check(op: &Op, est: &mut Estimator<'_>) -> Result<Option<estimator::AugMatrix>, TestCaseError> {
     let before = (est.mean(), est.covariance());
     match op.apply(est) {
         Ok(out) => {

@@ -1,102 +1,48 @@
-//! The Kalman filter over `[y; p]`.
+//! The estimator: one step of the Kalman filter over `[y; p]`
+//! ([`crate::kalman`]), the swing's readers (`crate::swing`), their
+//! evidence joined with the filter's once (`fusion`), and the verdict
+//! ([`crate::trust`]).
 //!
-//! Its rooms: `kernels` (the sums and small factorisations every path
-//! uses), `scheduled` (updates on the blob's gain schedule), `two_stage`
-//! (after it), `full` (the whole recursion, and prediction without a
-//! measurement), `update` (one step's measurement update, along one of
-//! those paths), `observe` (what the step saw beside the filter: the
-//! swing, the envelope, the kinematics), `output` (the step's report);
-//! the swing's readers `centre`, `period`, `decay`, `last_third`,
-//! `early` and `fit`, and `unobserved` (a step without a measurement);
-//! the verdict is [`crate::trust`]'s.
+//! Its rooms: `update` (one step's measurement update and its
+//! bookkeeping), `observe` (what the step saw beside the filter: the
+//! swing, the envelope, the kinematics), `unobserved` (a step without a
+//! measurement, an outlier refused, the parameters reopened), `fusion`
+//! (the readers' lengths joined with the filter's), `output` (the step's
+//! report and its checks).
 //!
-//! # Notation (the maths is the spec)
-//! - state `m = [y; p]`: `y` the [`LATENT_DIM`] latent, `p` the
-//!   [`PARAM_DIM`] physical parameters; [`AUG_DIM`] in all.
-//! - `F`: the augmented Koopman matrix from the blob (its `p` rows are the
-//!   identity: parameters are static).
-//! - `H = [I_16 0]`: the filter observes `z = phi(x_n)`, the encoded
-//!   measurement, and nothing of `p` directly.
-//! - `Q`, `R`: diagonal process and measurement noise from the blob.
-//! - `P`: the state covariance.
-//!
-//! Predict: `g = F g`, `P = F P F^T + Q`. Update: `S = H P H^T + R`,
-//! `K = P H^T S^-1`, `g += K (z - H g)`, `P = (I - K H) P`: the textbook
-//! filter, which `trainer_core::reference` runs in f64 as the tests' oracle.
-//!
-//! How this crate computes it (same numbers, less work; see
-//! `Estimator::predict_update`): `S = L D L^T` (no square roots) and
-//! `S^-1 = L^-T D^-1 L^-1`. The gain is never formed: `K_y = I - R S^-1`
-//! and `K_p = M^T` with `M = S^-1 P_yp`. So `y = z - R S^-1 nu`,
-//! `p += M^T nu` (`nu = z - y` the innovation) and `P_yy = R - R S^-1 R`.
-//! `P_yp` and `P_pp` take Joseph's form for those blocks,
-//! `(I - K H) P (I - K H)^T + K R K^T`, which an error in `S^-1` changes
-//! only to second order.
-//!
-//! # Three ways to the same numbers
-//! The covariance recursion (`P`, `S`, `K`) does not depend on the
-//! measurements, so for a given blob the gains are the same on every
-//! trajectory. With a blob that carries a gain schedule (the protocol blob,
-//! `weights/pendulum.kkf`, does, for its 63 updates):
-//! 1. updates `1..=T` apply the blob's precomputed `K_n` (computed in f64
-//!    at export): `g = F g + K_n (z - H F g)`, about 600 multiply-adds;
-//! 2. after update `T` the filter runs in Friedland's two-stage form,
-//!    exact for static parameters: a bias-free filter over `y` alone,
-//!    whose gain `K~` has converged by update `T` and is held, and a small
-//!    filter over `p` with the sensitivity `V` of `y` to `p` (see
-//!    `Estimator::two_stage_update`), about 1,750 multiply-adds;
-//! 3. [`Estimator::without_schedule`] runs the recursion above at every
-//!    update, about 15,300 multiply-adds: the reference path, and the one
-//!    for a blob without a schedule.
-//!
-//! The exporter checks in f64 that the two-stage form reproduces the full
-//! `P` at every scheduled update, that `K~` has stopped changing, and that
-//! holding it leaves the parameters' standard deviations within 1e-6
-//! (relative) of the exact recursion for 2000 more updates. The host tests
-//! hold all three paths to the same oracles.
-//!
-//! The correction to the parameters at a step is the `p` part of
-//! `K (z - H g)`. After `burn_in` updates, the population standard
-//! deviation of these corrections (sigma) says how far to trust `p`.
+//! The filter itself, its notation (`F`, `H`, `Q`, `R`, `P`) and its
+//! three paths are [`crate::kalman`]'s.
 //!
 //! `p` holds the parameters' coordinates `q`; [`StepOutput::params`] reads
 //! them through each parameter's [`Reading`](crate::blob::Reading) (the
 //! protocol blob's length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
 //! gives them as they are. Corrections, sigma and the trust verdict stay
 //! in the coordinates. While the swing is too small to read the three are
-//! held ([`StepOutput::held`]; the swings are defined in `trust::swing`);
+//! held ([`StepOutput::held`]; the swings are defined in `swing::window`);
 //! [`Estimator::mean`] is always the filter's.
 
-use nalgebra::{ArrayStorage, SMatrix, SVector};
-
-mod full;
-mod kernels;
+mod fusion;
 mod observe;
 mod output;
 mod unobserved;
-mod scheduled;
-mod two_stage;
 mod update;
 
 pub use output::StepOutput;
 
-use crate::swing::{Centre, Decay, Early, Fit, Period, REOPEN_SHARE};
-use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, tail};
+use crate::swing::{Centre, Decay, Early, Fit, Period};
 
-use crate::model::{Model, Tail};
+use crate::kalman::kernels::tail;
+use crate::kalman::{AugMatrix, AugVector, Kalman};
+use crate::model::Model;
 use crate::trust::{EnvelopeWindow, Spread, SwingWindow};
 use crate::trust::{Consistency, Kinematics};
-use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM, State};
+use crate::{Error, Latent, PARAM_DIM, State};
 
 /// A held estimate: the parameters' coordinates, the filter's standard
 /// deviations of them and the period's `w0^2` with its relative standard
 /// deviation.
 type Held = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>);
 
-/// `[y; p]` as a vector.
-pub type AugVector = SVector<f32, AUG_DIM>;
-/// An [`AUG_DIM`] square matrix (`F`, `P`, `Q`).
-pub type AugMatrix = SMatrix<f32, AUG_DIM, AUG_DIM>;
 
 /// Largest magnitude a raw measurement may have; larger is refused as not
 /// a real reading (an angle of 1e6 rad is a broken sensor, not a swing).
@@ -120,21 +66,9 @@ pub const MAX_ABS_INPUT: f32 = 1.0e6;
 // chose, the step cost 2,600 more Cortex-M4F instructions (docs/damping.md).
 #[repr(C)]
 pub struct Estimator<'m> {
+    /// The filter over `[y; p]`.
+    kalman: Kalman<'m>,
     model: &'m Model<'m>,
-    mean: Aug,
-    /// `P` when the recursion runs here (without the schedule).
-    p: Cov,
-    /// The two-stage form after the schedule: `V` and `P_b`.
-    v: Sensitivity,
-    pb: ParamSquare,
-    param_std: [f32; PARAM_DIM],
-    t: u32,
-    started: bool,
-    scheduled: bool,
-    /// A step without a measurement has been predicted since the first
-    /// measurement: the precomputed gains no longer apply, and the whole
-    /// recursion runs from then on.
-    bridged: bool,
     spread: Spread,
     window: EnvelopeWindow,
     /// The most measurements off the envelope in any window so far.
@@ -189,16 +123,8 @@ impl<'m> Estimator<'m> {
     /// if there is one.
     pub fn new(model: &'m Model<'m>) -> Self {
         Estimator {
+            kalman: Kalman::new(model, true),
             model,
-            mean: [0.0; AUG_DIM],
-            p: [[0.0; AUG_DIM]; AUG_DIM],
-            v: [[0.0; LATENT_DIM]; PARAM_DIM],
-            pb: [[0.0; PARAM_DIM]; PARAM_DIM],
-            param_std: [0.0; PARAM_DIM],
-            t: 0,
-            started: false,
-            scheduled: true,
-            bridged: false,
             spread: Spread::default(),
             window: EnvelopeWindow::default(),
             worst_off: 0,
@@ -289,7 +215,7 @@ impl<'m> Estimator<'m> {
     /// is always known).
     pub fn without_schedule(model: &'m Model<'m>) -> Self {
         Estimator {
-            scheduled: false,
+            kalman: Kalman::new(model, false),
             ..Estimator::new(model)
         }
     }
@@ -298,7 +224,7 @@ impl<'m> Estimator<'m> {
     /// the declared gravity, if any).
     pub fn reset(&mut self) {
         *self = Estimator {
-            scheduled: self.scheduled,
+            kalman: Kalman::new(self.model, self.kalman.scheduled),
             g_ratio: self.g_ratio,
             g_known: self.g_known,
             source_dt: self.source_dt,
@@ -309,20 +235,13 @@ impl<'m> Estimator<'m> {
     internal! {
         /// Whether the next update applies a precomputed gain.
         pub fn on_schedule(&self) -> bool {
-            self.uses_schedule() && self.started && self.t < self.model.schedule_steps()
+            self.kalman.on_schedule()
         }
-    }
-
-    /// Whether the schedule and the two-stage form drive the updates (a
-    /// blob with a schedule, not refused by the caller, and no step
-    /// predicted without a measurement).
-    fn uses_schedule(&self) -> bool {
-        self.scheduled && !self.bridged && self.model.schedule_tail().is_some()
     }
 
     /// The mean `[y; p]`.
     pub fn mean(&self) -> AugVector {
-        AugVector::from(self.mean)
+        AugVector::from(self.kalman.mean)
     }
 
     /// Forecasts the raw states after the last measurement from the
@@ -334,10 +253,10 @@ impl<'m> Estimator<'m> {
     ///
     /// [`Error::FilterNotStarted`] before the first measurement.
     pub fn forecast(&self, out: &mut [State]) -> Result<(), Error> {
-        if !self.started {
+        if !self.kalman.started {
             return Err(Error::FilterNotStarted);
         }
-        self.model.rollout_from(&self.mean, out)?;
+        self.model.rollout_from(&self.kalman.mean, out)?;
         let offset = self.centre.applied();
         for [theta, _] in out.iter_mut() {
             *theta += offset;
@@ -350,47 +269,7 @@ impl<'m> Estimator<'m> {
     /// gains, not every `P`). From update `T` on it is assembled from the
     /// two-stage form, `[P~ + V P_b V^T, V P_b; P_b V^T, P_b]`.
     pub fn covariance(&self) -> Option<AugMatrix> {
-        let tail = self.model.schedule_tail();
-        let t_end = self.model.schedule_steps();
-        match tail {
-            Some(tail) if self.uses_schedule() && self.started && self.t >= 1 => {
-                (self.t >= t_end).then(|| self.assembled(tail))
-            }
-            _ => Some(AugMatrix::from_data(ArrayStorage(self.p))),
-        }
-    }
-
-    /// `P` from the two-stage form (upper triangle, then mirrored).
-    fn assembled(&self, tail: &Tail<'_>) -> AugMatrix {
-        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
-        // V P_b, column a = sum_b V_b P_b[b][a].
-        let mut vpb = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-        for (a, col) in vpb.iter_mut().enumerate() {
-            *col = combo(
-                self.pb
-                    .iter()
-                    .map(|row| row.get(a).copied().unwrap_or(0.0))
-                    .zip(&self.v),
-            );
-        }
-        for (i, (row, pt_row)) in p.iter_mut().zip(tail.pt).enumerate() {
-            for (j, (d, pt)) in row.iter_mut().zip(pt_row).enumerate().skip(i) {
-                let outer = vpb.iter().zip(&self.v).fold(0.0f32, |acc, (c, v)| {
-                    acc + c.get(i).copied().unwrap_or(0.0) * v.get(j).copied().unwrap_or(0.0)
-                });
-                *d = pt + outer;
-            }
-            for (d, c) in row.iter_mut().skip(LATENT_DIM).zip(&vpb) {
-                *d = c.get(i).copied().unwrap_or(0.0);
-            }
-        }
-        for (row, pb_row) in p.iter_mut().skip(LATENT_DIM).zip(&self.pb) {
-            for (d, v) in row.iter_mut().skip(LATENT_DIM).zip(pb_row) {
-                *d = *v;
-            }
-        }
-        mirror_upper(&mut p);
-        AugMatrix::from_data(ArrayStorage(p))
+        self.kalman.covariance()
     }
 
     internal! {
@@ -443,60 +322,19 @@ impl<'m> Estimator<'m> {
             return Err(Error::NonFiniteInput);
         }
         let [theta, rate] = *raw;
+        // The angle's zero taken off, the measurement encoded.
         let centred = self.centre.centred(theta, rate);
         let x_n = self.model.normalise(&centred);
         let z = self.model.encode(&x_n);
+        // The filter's update, then the report: the readers' evidence so
+        // far joined with the filter's (fusion) and the verdict (trust).
         let mut out = self.update(&z, Some((&centred, &x_n)))?;
-        // A refused measurement leaves no turning point behind (and breaks
-        // their chain); a taken one may give the offset, subtracted from
-        // the next measurement on, and end a half swing.
-        let dt = self.model.blob().body.dt;
-        self.decay.tick(dt);
-        if out.outlier {
-            self.centre.gap();
-            self.period.gap();
-            self.early.gap();
-            self.fit.hold(dt);
-        } else {
-            let was = self.centre.subtracting();
-            let [x, _] = centred;
-            self.period.push(x);
-            self.early.push(theta);
-            self.fit.push(theta, dt);
-            if let Some(half) = self.centre.push(theta, rate) {
-                self.decay.turn(half);
-                // The source's own interval where coarser than the steps.
-                let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
-                // A half swing from a release is timed, not sized.
-                let timed = half.or(self.centre.released_swing());
-                self.period.turn(timed, self.centre.middle() - (theta - x), dt, source_dt);
-                self.early.turn(timed, self.centre.middle(), dt);
-                if self.period.omega_squared().is_some() {
-                    self.early.finish();
-                    if self.t >= crate::swing::fit::FIT_STEPS {
-                        self.fit.finish();
-                    }
-                }
-                // A moved offset moves the half swings' middles with it.
-                self.period.shift(self.centre.applied() - (theta - x));
-                (out.q_factor, out.q_factor_std, out.q_swing) = self.decay.q_factor();
-                if !was && self.centre.subtracting() {
-                    self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
-                }
-            }
+        // The swing's readers fed this measurement (they speak from the
+        // next step on; the decay's quality factor at once).
+        if let Some(q) = self.read_swing(theta, rate, centred, out.outlier) {
+            (out.q_factor, out.q_factor_std, out.q_swing) = q;
         }
         Ok(out)
-    }
-
-    /// `P` now, whichever path produced the last update.
-    fn current_covariance(&self) -> Result<Cov, Error> {
-        match self.model.schedule_tail() {
-            Some(tail) if self.uses_schedule() && self.t >= self.model.schedule_steps() => {
-                Ok(self.assembled(tail).data.0)
-            }
-            Some(_) if self.uses_schedule() => self.replayed_covariance(),
-            _ => Ok(self.p),
-        }
     }
 
     internal! {

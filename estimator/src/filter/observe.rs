@@ -3,6 +3,7 @@
 //! the smallest swing read as trusted.
 
 use super::{Estimator, tail};
+use crate::swing::REOPEN_SHARE;
 use crate::swing::decay;
 use crate::State;
 
@@ -48,16 +49,71 @@ impl Estimator<'_> {
         // the filter gets into the snapshot; nor does an estimate still
         // settling a window after its parameters were reopened.
         let settled_again = !self.reopened()
-            || self.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
+            || self.kalman.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
         if self.swing.push(theta, rate, min_swing) >= self.swing_floor() && settled_again {
-            self.held = Some((*tail(&self.mean), self.param_std, self.period.omega_squared()));
+            self.held = Some((*tail(&self.kalman.mean), self.kalman.param_std, self.period.omega_squared()));
         }
         self.kinematics.push(theta, rate, self.model.blob().body.dt);
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);
-        let settled = self.t >= self.burn_until.max(burn_in);
-        let q = tail(&self.mean).first().copied().filter(|_| settled);
+        let settled = self.kalman.t >= self.burn_until.max(burn_in);
+        let q = tail(&self.kalman.mean).first().copied().filter(|_| settled);
         let inside = self.model.blob().body.trust.envelope.contains(x_n, q);
         self.window.push(!inside);
         self.worst_off = self.worst_off.max(self.window.count());
+    }
+
+    /// The swing's readers fed one measurement: `theta` and `rate` as
+    /// measured, `centred` with the offset taken off; a measurement
+    /// `refused` as an outlier breaks their chains. At a turning point the
+    /// offset may be found (the parameters then reopened,
+    /// [`Estimator::reopen_params`]) and the decay's `Q`, its standard
+    /// deviation and its swing are returned.
+    pub(super) fn read_swing(
+        &mut self,
+        theta: f32,
+        rate: f32,
+        centred: State,
+        refused: bool,
+    ) -> Option<(Option<f32>, Option<f32>, Option<f32>)> {
+        let mut q = None;
+        // A refused measurement leaves no turning point behind (and breaks
+        // their chain); a taken one may give the offset, subtracted from
+        // the next measurement on, and end a half swing.
+        let dt = self.model.blob().body.dt;
+        self.decay.tick(dt);
+        if refused {
+            self.centre.gap();
+            self.period.gap();
+            self.early.gap();
+            self.fit.hold(dt);
+        } else {
+            let was = self.centre.subtracting();
+            let [x, _] = centred;
+            self.period.push(x);
+            self.early.push(theta);
+            self.fit.push(theta, dt);
+            if let Some(half) = self.centre.push(theta, rate) {
+                self.decay.turn(half);
+                // The source's own interval where coarser than the steps.
+                let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
+                // A half swing from a release is timed, not sized.
+                let timed = half.or(self.centre.released_swing());
+                self.period.turn(timed, self.centre.middle() - (theta - x), dt, source_dt);
+                self.early.turn(timed, self.centre.middle(), dt);
+                if self.period.omega_squared().is_some() {
+                    self.early.finish();
+                    if self.kalman.t >= crate::swing::fit::FIT_STEPS {
+                        self.fit.finish();
+                    }
+                }
+                // A moved offset moves the half swings' middles with it.
+                self.period.shift(self.centre.applied() - (theta - x));
+                q = Some(self.decay.q_factor());
+                if !was && self.centre.subtracting() {
+                    self.reopen_params(self.centre.share_of_swing() >= REOPEN_SHARE);
+                }
+            }
+        }
+        q
     }
 }

@@ -1,9 +1,9 @@
 //! What one step reports.
 
 use super::Estimator;
+use super::fusion::Agreement;
 use crate::swing::fit;
-use super::kernels::tail;
-use crate::blob::ParamSpec;
+use crate::kalman::kernels::tail;
 use crate::trust::{self, Checks, Trust};
 use crate::PARAM_DIM;
 
@@ -130,49 +130,6 @@ pub struct StepOutput {
     pub period_length_std: Option<f32>,
 }
 
-/// The parameters and their standard deviations as reported, the
-/// period's length with its standard deviation, and how the model's
-/// length stands to it ([`Estimator::with_period`]).
-type Reported = ([f32; PARAM_DIM], [f32; PARAM_DIM], Option<(f32, f32)>, Agreement);
-
-/// How the model's length stands to the period's.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Agreement {
-    /// No period, or the model's outside its calibrated range.
-    Unknown,
-    /// Within [`trust::PERIOD_AGREES`] standard deviations: joined.
-    Agrees,
-    /// Further apart: the period's is reported.
-    Apart,
-    /// Further apart and by more than [`trust::PERIOD_DISAGREES`] too: the
-    /// consistency check fails unless the period is sure
-    /// ([`trust::PERIOD_SURE`]).
-    Disagrees,
-}
-
-/// One parameter as reported.
-#[derive(Debug, Clone, Copy)]
-struct ParamRead {
-    /// Its value at the blob's training gravity.
-    trained: f32,
-    /// Its value at the declared gravity.
-    value: f32,
-    /// Its calibrated standard deviation there.
-    std: f32,
-}
-
-impl ParamRead {
-    /// No reading: every field NaN.
-    ///
-    /// No unit (a placeholder). Fixed by what it marks: NaN is the report's
-    /// none for a parameter not read; not a tuning value.
-    const NONE: ParamRead = ParamRead {
-        trained: f32::NAN,
-        value: f32::NAN,
-        std: f32::NAN,
-    };
-}
-
 impl Estimator<'_> {
     /// The step's report: the estimate (or the held one), its calibrated
     /// standard deviations and the verdict.
@@ -187,7 +144,7 @@ impl Estimator<'_> {
         let small = self.swing.recent().is_some_and(|s| s < floor);
         let held = self.held.filter(|_| small);
         let (coordinate, coordinate_std, w0_squared) =
-            held.unwrap_or((*tail(&self.mean), self.param_std, self.period.omega_squared()));
+            held.unwrap_or((*tail(&self.kalman.mean), self.kalman.param_std, self.period.omega_squared()));
         let specs = &blob.body.params;
         let read = self.read_params(&coordinate, &coordinate_std);
         let (offset, offset_std) = self.centre.offset();
@@ -195,7 +152,7 @@ impl Estimator<'_> {
         let sigma = self.spread.sigma();
         let q0 = coordinate.first().copied().unwrap_or(f32::NAN);
         let unevenness = self.swing.most_uneven();
-        let full_window = self.t.saturating_add(1) >= crate::WINDOW as u32;
+        let full_window = self.kalman.t.saturating_add(1) >= crate::WINDOW as u32;
         let swing = self.swing.widest();
         // The length at the blob's gravity: what the model's own error
         // follows (the consistency law's).
@@ -215,20 +172,20 @@ impl Estimator<'_> {
         let (mut params, mut param_std, period, agreement) =
             self.with_period(&read, in_range, w0_squared);
         let mut timed = false;
-        if held.is_none() && (w0_squared.is_none() || self.t < fit::FIT_STEPS) {
+        if held.is_none() && (w0_squared.is_none() || self.kalman.t < fit::FIT_STEPS) {
             // In the first two windows, a model whose measurements it
             // cannot explain, or whose swing is uneven (an offset not yet
             // subtracted), is not believed over the half swings (later, a
             // tracker's heavy noise makes both: on the off-distribution
             // suite's noisy axis, 90 of 120 right at the end rather than
             // 100).
-            let suspect = self.t < 2 * crate::WINDOW as u32
+            let suspect = self.kalman.t < 2 * crate::WINDOW as u32
                 && (!consistent || unevenness.is_some_and(|u| u > calib.max_unevenness));
             timed = self.join_early(&mut params, &mut param_std, in_range, suspect);
         }
         let mut checks = Checks {
             corrections: self.spread.n,
-            afresh: self.afresh_until > 0 && self.t < self.afresh_until,
+            afresh: self.afresh_until > 0 && self.kalman.t < self.afresh_until,
             // A NaN deviation is vague too.
             vague: self.reopened()
                 && match (params.first(), param_std.first()) {
@@ -269,7 +226,7 @@ impl Estimator<'_> {
                 && (agreement == Agreement::Agrees || std <= trust::PERIOD_SURE * length)
         });
         StepOutput {
-            t: self.t,
+            t: self.kalman.t,
             params,
             param_std,
             coordinate,
@@ -297,154 +254,6 @@ impl Estimator<'_> {
         }
     }
 
-    /// The parameters at the coordinates `q` with the filter's standard
-    /// deviations `q_std`, read with the blob's calibration.
-    /// The parameters the filter's coordinate `q` reads as at the declared
-    /// gravity ([`StepOutput::coordinate`] gives it): the learned model's
-    /// own estimate, before the swing's period is joined with it.
-    pub fn model_params(&self, q: &[f32; PARAM_DIM]) -> [f32; PARAM_DIM] {
-        self.read_params(q, &[0.0; PARAM_DIM]).map(|r| r.value)
-    }
-
-    fn read_params(
-        &self,
-        q: &[f32; PARAM_DIM],
-        q_std: &[f32; PARAM_DIM],
-    ) -> [ParamRead; PARAM_DIM] {
-        let body = &self.model.blob().body;
-        let calib = &body.trust;
-        core::array::from_fn(|k| {
-            let at = |a: &[f32; PARAM_DIM]| a.get(k).copied().unwrap_or(f32::NAN);
-            let std_calibration = [at(&calib.std_scale), at(&calib.std_floor)];
-            body.params.get(k).map_or(ParamRead::NONE, |spec| {
-                self.read_param(spec, at(q), at(q_std), std_calibration)
-            })
-        })
-    }
-
-    /// The parameters and standard deviations reported from the filter's
-    /// `read`, the length joined with the period's (`w0_squared`, `w0^2`
-    /// and its relative standard deviation) where there is one, each
-    /// weighted by its inverse variance, and the period's length with its
-    /// standard deviation. Where the filter's deviations are not
-    /// `calibrated` (outside the range), or the two lie further apart
-    /// than [`trust::PERIOD_AGREES`] deviations, the period's alone
-    /// ([`Agreement`]).
-    fn with_period(
-        &self,
-        read: &[ParamRead; PARAM_DIM],
-        calibrated: bool,
-        w0_squared: Option<(f32, f32)>,
-    ) -> Reported {
-        let mut params = read.map(|r| r.value);
-        let mut agreement = Agreement::Unknown;
-        let mut param_std = read.map(|r| r.std);
-        let body = &self.model.blob().body;
-        let is_length = body
-            .params
-            .first()
-            .is_some_and(|spec| spec.declared && spec.scales_with_g);
-        let period = w0_squared
-            .filter(|_| is_length)
-            .map(|(w2, rel)| {
-                let length = body.rig.length_at(self.g_ratio * body.g, w2);
-                (length, rel * length)
-            });
-        if let (Some((lp, sp)), Some(l), Some(s)) = (period, params.first_mut(), param_std.first_mut())
-        {
-            // Two readings further apart than their deviations allow: one
-            // is wrong, and the model's deviation is the one calibrated on
-            // the training's draws alone.
-            let known = calibrated && (*s * *s).is_finite();
-            let join = if known { joined((*l, *s), (lp, sp)) } else { None };
-            agreement = match join {
-                Some(_) => Agreement::Agrees,
-                None if !known => Agreement::Unknown,
-                None if libm::fabsf(*l - lp) > trust::PERIOD_DISAGREES * lp => Agreement::Disagrees,
-                None => Agreement::Apart,
-            };
-            (*l, *s) = join.unwrap_or((lp, sp));
-        }
-        (params, param_std, period, agreement)
-    }
-
-    /// The length joined with the first swings' ([`Self::first_swings`]:
-    /// the half swings timed and the swing's equation fitted) before the
-    /// period gives its own and for two windows, each weighted by its
-    /// inverse variance, where the two agree within
-    /// [`trust::PERIOD_AGREES`] deviations. Further apart, the first
-    /// swings' is reported where the model is `suspect`
-    /// (in the first two windows, its measurements inconsistent with it,
-    /// or its swing uneven: an offset not yet subtracted), else the model's (few half swings can
-    /// be wrong together); outside the `calibrated` range, the half
-    /// swings' alone, as the period's. Within 5% after 64 on lab-check
-    /// seeds 12, 14, 15 and 16: 708 of 800, 695 without (the half swings'
-    /// wherever apart: 710); with the later timing rules, 744, 745 with
-    /// the half swings' where suspect (746 with `early`'s span gate).
-    ///
-    /// Returns whether the first swings confirm the length: from two
-    /// windows of measurements on, joined with a `calibrated` model's, at
-    /// a relative standard deviation of at most [`trust::VERDICT_REL_STD`]
-    /// and at most the model's. Such a length does not rest on the model's
-    /// accuracy at this swing, so the swing check passes (the smallest
-    /// trusted swing is where the model's own reading fails after one
-    /// window: on the protocol's in-distribution rollouts of two,
-    /// `docs/protocol-check/README.md`, it flagged 11 of 120 right ones;
-    /// with this, 1). Before two windows, or sharper only than 5%, the
-    /// rig blob's heavily damped swings (`rig_off_distribution`, viscous
-    /// 0.3 to 1 1/s) were trusted wrong 3 times in 120 rather than 2.
-    #[cold]
-    #[inline(never)]
-    fn join_early(
-        &self,
-        params: &mut [f32; PARAM_DIM],
-        std: &mut [f32; PARAM_DIM],
-        calibrated: bool,
-        suspect: bool,
-    ) -> bool {
-        let Some((w2, rel)) = self.first_swings() else {
-            return false;
-        };
-        let body = &self.model.blob().body;
-        if !body.params.first().is_some_and(|spec| spec.declared && spec.scales_with_g) {
-            return false;
-        }
-        let (Some(l), Some(s)) = (params.first_mut(), std.first_mut()) else {
-            return false;
-        };
-        let lp = body.rig.length_at(self.g_ratio * body.g, w2);
-        if !(lp.is_finite() && lp > 0.0) {
-            return false;
-        }
-        let reading = (lp, rel * lp);
-        let join = joined((*l, *s), reading);
-        // Sharper than the model's own calibrated reading: the length no
-        // longer rests on the model's accuracy at this swing.
-        let sharper = reading.1 <= *s;
-        let confirms = calibrated && join.is_some() && sharper && rel <= trust::VERDICT_REL_STD && self.t.saturating_add(1) >= 2 * crate::WINDOW as u32;
-        (*l, *s) = match (calibrated, join) {
-            (false, _) => reading,
-            (true, Some(join)) => join,
-            (true, None) if suspect => reading,
-            (true, None) => (*l, *s),
-        };
-        confirms
-    }
-
-    /// `w0^2` and its relative standard deviation from the first swings:
-    /// their half swings timed ([`super::early`]) and their equation
-    /// fitted ([`super::fit`]), joined by inverse variance where they
-    /// agree, else the sharper.
-    fn first_swings(&self) -> Option<(f32, f32)> {
-        let dt = self.model.blob().body.dt;
-        match (self.early.reading(), self.fit.reading(dt, self.source_dt)) {
-            (Some((w_e, r_e)), Some((w_f, r_f))) => {
-                if r_f < r_e { Some((w_f, r_f)) } else { Some((w_e, r_e)) }
-            }
-            (early, fit) => early.or(fit),
-        }
-    }
-
     /// Whether the declared source gives at least `min_samples` samples a
     /// period at the length `length` (read at the blob's gravity): the
     /// period is `2 pi sqrt(l_eq / g)`; and, coarser than the blob's
@@ -458,7 +267,7 @@ impl Estimator<'_> {
         }
         let l_eq = length * body.rig.equivalent_fraction();
         let period = core::f32::consts::TAU * libm::sqrtf(l_eq / body.g);
-        let own = self.t as f32 * body.dt / self.source_dt;
+        let own = self.kalman.t as f32 * body.dt / self.source_dt;
         let enough = self.source_dt <= body.dt || own >= crate::WINDOW as f32;
         period / self.source_dt >= min_samples && enough
     }
@@ -486,47 +295,4 @@ impl Estimator<'_> {
         libm::fabsf(r / expected - 1.0) <= max_mismatch
     }
 
-    /// The parameter `spec` at the coordinate `q` with the filter's
-    /// standard deviation `q_std`, reported with the blob's calibration
-    /// `[scale, floor]`: `sqrt((scale q_std)^2 + floor^2)`, through the
-    /// reading's slope.
-    fn read_param(&self, spec: &ParamSpec, q: f32, q_std: f32, [a, b]: [f32; 2]) -> ParamRead {
-        let scale = if spec.scales_with_g {
-            self.g_ratio
-        } else {
-            1.0
-        };
-        let trained = spec.read(q);
-        // A source coarser than the steps is interpolated to them: the
-        // filter takes `source_dt / dt` measurements for each frame, and
-        // its `P` counts each frame that many times.
-        let dt = self.model.blob().body.dt;
-        let q_std = if self.source_dt > dt {
-            q_std * libm::sqrtf(self.source_dt / dt)
-        } else {
-            q_std
-        };
-        let calibrated = libm::sqrtf((a * q_std) * (a * q_std) + b * b);
-        ParamRead {
-            trained,
-            value: scale * trained,
-            std: scale * libm::fabsf(spec.slope(q)) * calibrated,
-        }
-    }
-}
-
-/// Two readings of the length with their standard deviations, `(l, s)`
-/// and `(lp, sp)`, joined by inverse variance where they agree within
-/// [`trust::PERIOD_AGREES`] deviations; `None` further apart.
-fn joined((l, s): (f32, f32), (lp, sp): (f32, f32)) -> Option<(f32, f32)> {
-    let (vk, vp) = (s * s, sp * sp);
-    let apart = l - lp;
-    if apart * apart > trust::PERIOD_AGREES * trust::PERIOD_AGREES * (vk + vp) {
-        return None;
-    }
-    if vk + vp > 0.0 {
-        Some((l + vk / (vk + vp) * (lp - l), libm::sqrtf(vk * vp / (vk + vp))))
-    } else {
-        Some((l, s))
-    }
 }

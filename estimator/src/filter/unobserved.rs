@@ -3,10 +3,9 @@
 //! as an outlier, and the parameters reopened once the angle's offset is
 //! found.
 
-use super::kernels::sqrt_diag;
 use super::{Estimator, StepOutput};
 use crate::trust::{Consistency, EnvelopeWindow, Spread};
-use crate::{Error, LATENT_DIM, PARAM_DIM};
+use crate::{Error, PARAM_DIM};
 
 /// How many times the parameters' variances widen when a small offset is
 /// first subtracted: the estimate may move by about three of its standard
@@ -63,7 +62,7 @@ impl Estimator<'_> {
     /// # Ok::<(), estimator::Error>(())
     /// ```
     pub fn predict(&mut self) -> Result<StepOutput, Error> {
-        if !self.started {
+        if !self.kalman.started {
             return Err(Error::FilterNotStarted);
         }
         self.advance_unobserved()?;
@@ -75,19 +74,13 @@ impl Estimator<'_> {
     /// One model step without a measurement: the state of
     /// [`Estimator::predict`], before its report.
     fn advance_unobserved(&mut self) -> Result<(), Error> {
-        let p = self.current_covariance()?;
-        let (m, p) = self.predict_only(&p)?;
-        self.mean = m;
-        self.p = p;
-        self.param_std = sqrt_diag(&p, LATENT_DIM);
-        self.bridged = true;
+        self.kalman.predict()?;
         self.kinematics.gap();
         self.centre.gap();
         self.decay.tick(self.model.blob().body.dt);
         self.period.gap();
         self.early.gap();
         self.fit.gap();
-        self.t = self.t.saturating_add(1);
         Ok(())
     }
 
@@ -112,39 +105,14 @@ impl Estimator<'_> {
     #[cold]
     #[inline(never)]
     pub(super) fn reopen_params(&mut self, afresh: bool) {
-        let spec = &self.model.blob().body.filter;
-        let p = if afresh {
-            for (m, prior) in self.mean.iter_mut().skip(LATENT_DIM).zip(&spec.prior_mean) {
-                *m = *prior;
-            }
-            super::full::prior_covariance(spec)
-        } else {
-            // Only the schedule's replay can fail: then the parameters stay.
-            let Ok(mut p) = self.current_covariance() else {
-                return;
-            };
-            for (i, row) in p.iter_mut().enumerate() {
-                for (j, v) in row.iter_mut().enumerate() {
-                    if i >= LATENT_DIM || j >= LATENT_DIM {
-                        *v = match (i == j, spec.prior_var.get(i)) {
-                            (false, _) => 0.0,
-                            (true, prior) => {
-                                let widened = REOPEN * *v;
-                                prior.map_or(widened, |p| widened.min(*p))
-                            }
-                        };
-                    }
-                }
-            }
-            p
-        };
-        self.p = p;
-        self.bridged = true;
+        if !self.kalman.reopen(afresh, REOPEN) {
+            return;
+        }
         // The verdict starts again: a burn-in, then the corrections.
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);
-        self.burn_until = self.t.saturating_add(burn_in);
+        self.burn_until = self.kalman.t.saturating_add(burn_in);
         if afresh {
-            self.afresh_until = self.t.saturating_add(crate::WINDOW as u32);
+            self.afresh_until = self.kalman.t.saturating_add(crate::WINDOW as u32);
         }
         self.spread = Spread::default();
         self.consistency = Consistency::default();
@@ -193,7 +161,7 @@ impl Estimator<'_> {
     /// As [`Estimator::predict`]; it stops at the first error, with the
     /// steps before it kept.
     pub fn skip(&mut self, n: u32) -> Result<StepOutput, Error> {
-        if !self.started {
+        if !self.kalman.started {
             return Err(Error::FilterNotStarted);
         }
         let mut out = self.output([0.0; PARAM_DIM]);

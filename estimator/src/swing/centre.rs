@@ -24,31 +24,24 @@
 //! [`REST_SHARE`] of the first half swing's largest: a release) has its
 //! first measurement for the chain's first turn, moved out by what a
 //! harmonic swing at that rate lies short of its turn: every triple and
-//! pair comes a half period sooner. On lab-check seeds 13 and 17 to 21
-//! (1200 recordings, offsets to 0.1 rad, never tuned on), 927 lengths
-//! are within 5% after 64 measurements rather than 898, with 2 wrong and
-//! trusted either way; one that starts mid-swing waits for its turns.
+//! pair comes a half period sooner (docs/tuning.md#swingcentre); one
+//! that starts mid-swing waits for its turns.
 //!
 //! The filter is fed `theta - c`, `c` the mean so far, from the first
 //! triple on where it is at least twice [`OFFSET_FLOOR`] (and twice the
 //! lean a viscous decay gives it, `first_significant`), and once two
 //! triples give a standard deviation, where it lies three of them from
 //! zero and not below [`OFFSET_FLOOR`] (a period and a half into the
-//! swing rather than two: with two triples, 34 of 200 lab recordings with
-//! offsets to 0.1 rad were off by more than 2% at the end rather than
-//! 26, lab-check seed 12): below the floor the turning points' own
+//! swing rather than two): below the floor the turning points' own
 //! error (the parabola's on a wide swing, the noise's) is as large, and
 //! it moves neither the length nor the unevenness at the smallest trusted
 //! swing by more than the noise does (a clean swing is fed as it is).
 //! An offset that is a large share of the swing ([`REOPEN_SHARE`])
 //! is subtracted sooner, from the middle of the first two turning points
-//! (a period into the swing: within 5% after 64 measurements, 605 of 800
-//! on lab-check seeds 12, 14, 15 and 16 rather than 564). Where the
-//! middle lies on the first turning point's side, where a damping moves
-//! it, it must be a larger share ([`PAIR_DAMPED_SHARE`]): at the same
-//! share a swing damped at Q of 3 to 10 was read after a wrong offset,
-//! and 3 of 120 were wrong and trusted (`rig_off_distribution`, viscous
-//! 0.3 to 1 1/s).
+//! (a period into the swing). Where the middle lies on the first turning
+//! point's side, where a damping moves it, it must be a larger share
+//! ([`PAIR_DAMPED_SHARE`]): a swing damped at Q of 3 to 10 was otherwise
+//! read after a wrong offset.
 //! When it first is, the estimator forgets what it learned about the
 //! parameters from the uncorrected angles (`Estimator::reopen_params`).
 

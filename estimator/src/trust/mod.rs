@@ -13,7 +13,7 @@
 //!
 //! The verdict is [`Trust::Trusted`] when no check fails (and, after the
 //! parameters were reopened, the length's standard deviation is within
-//! [`VERDICT_REL_STD`] of it; else [`Trust::Pending`]) and
+//! `VERDICT_REL_STD` of it; else [`Trust::Pending`]) and
 //! [`Trust::Untrusted`] with the failed checks' [`Reasons`] otherwise.
 //! Everything is fixed-size: the reasons are a [`heapless::Vec`], the
 //! window one `u64` of flags.

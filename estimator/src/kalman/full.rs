@@ -1,7 +1,7 @@
 //! The whole covariance recursion: the reference path, and the one for a
 //! blob without a schedule.
 
-use super::Estimator;
+use super::Kalman;
 use super::kernels::{
     Cov, LatentSquare, all_finite, combo, dot, inverse_from_ldl, ldl, mirror_upper, tail,
     unit_lower_inverse, upper_rows,
@@ -11,7 +11,7 @@ use crate::model::KoopmanColumns;
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
 /// The prior `P`: `diag(prior_var)`.
-pub(super) fn prior_covariance(spec: &FilterSpec) -> Cov {
+pub(crate) fn prior_covariance(spec: &FilterSpec) -> Cov {
     let mut p = [[0.0; AUG_DIM]; AUG_DIM];
     for (i, (row, v)) in p.iter_mut().zip(&spec.prior_var).enumerate() {
         if let Some(d) = row.get_mut(i) {
@@ -21,12 +21,12 @@ pub(super) fn prior_covariance(spec: &FilterSpec) -> Cov {
     p
 }
 
-impl Estimator<'_> {
+impl Kalman<'_> {
     /// `P` after the updates made so far, rebuilt by running the
     /// recursion from the prior (the covariance does not depend on the
     /// measurements, so any `z` will do): for a filter that has updated on
     /// the schedule, which keeps the gains and not `P`.
-    pub(super) fn replayed_covariance(&self) -> Result<Cov, Error> {
+    pub(crate) fn replayed_covariance(&self) -> Result<Cov, Error> {
         let mut replay = self.clone();
         replay.p = prior_covariance(&self.model.blob().body.filter);
         let z = [0.0f32; LATENT_DIM];
@@ -45,7 +45,7 @@ impl Estimator<'_> {
     /// For the bilinear family `C` is the Jacobian's latent rows at the
     /// mean ([`crate::Model::bilinear_step`]) and `y = F(q) y`: the
     /// extended filter's prediction.
-    pub(super) fn predict_only(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
+    pub(crate) fn predict_only(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
         if self.model.family() == Family::Bilinear {
             return self.predict_only_bilinear(p);
         }
@@ -53,7 +53,7 @@ impl Estimator<'_> {
         self.predict_only_with(p, y, self.model.koopman_columns())
     }
 
-    /// [`Estimator::predict_only`] of the bilinear family (its Jacobian in
+    /// [`Kalman::predict_only`] of the bilinear family (its Jacobian in
     /// this frame only).
     #[inline(never)]
     fn predict_only_bilinear(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
@@ -64,7 +64,7 @@ impl Estimator<'_> {
         self.predict_only_with(p, y, &ct)
     }
 
-    /// [`Estimator::predict_only`] with the predicted latent `y` and the
+    /// [`Kalman::predict_only`] with the predicted latent `y` and the
     /// transition's latent rows by columns, `ct` = `C^T`.
     fn predict_only_with(
         &self,
@@ -130,7 +130,7 @@ impl Estimator<'_> {
     /// The bilinear family runs the same recursion as an extended filter:
     /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
     /// mean ([`crate::Model::bilinear_step`]).
-    pub(super) fn predict_update(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
+    pub(crate) fn predict_update(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
         if self.model.family() == Family::Bilinear {
             return self.predict_update_bilinear(z, nis);
         }
@@ -138,7 +138,7 @@ impl Estimator<'_> {
         self.predict_update_with(z, self.model.koopman_columns(), y, nu, nis)
     }
 
-    /// [`Estimator::predict_update`] of the bilinear family: its
+    /// [`Kalman::predict_update`] of the bilinear family: its
     /// Jacobian's columns live in this frame only (the linear path's stack
     /// stays as it was).
     #[inline(never)]
@@ -154,7 +154,7 @@ impl Estimator<'_> {
         self.predict_update_with(z, &ct, y, nu, nis)
     }
 
-    /// [`Estimator::predict_update`] with the latent rows of the
+    /// [`Kalman::predict_update`] with the latent rows of the
     /// transition by columns (`ct` = `C^T`), the predicted latent `y` and
     /// the innovation `nu = z - y`; writes the normalised innovation
     /// squared `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for both

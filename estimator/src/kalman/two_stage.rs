@@ -1,11 +1,11 @@
 //! Updates after the schedule, in Friedland's two-stage form.
 
-use super::Estimator;
+use super::Kalman;
 use super::kernels::{ParamSquare, Sensitivity, all_finite, combo, inverse2, mul2, transpose2};
 use crate::model::Tail;
 use crate::{Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
-impl Estimator<'_> {
+impl Kalman<'_> {
     /// One update in two-stage form (after the schedule), leaving `self`
     /// alone; returns the new mean, `V` and `P_b`. With `S~^-1` from the
     /// tail and the held bias-free gain `K~ = I - R S~^-1` (never formed):
@@ -20,7 +20,7 @@ impl Estimator<'_> {
     /// `K_b nu = N (W^T nu)`, `K_b U = N X^T` and `K_b S~ K_b^T = N X N^T`;
     /// past `U` and `W` the update is six sums over the latent and 2x2
     /// algebra.
-    pub(super) fn two_stage_update(
+    pub(crate) fn two_stage_update(
         &self,
         z: &Latent,
         tail: &Tail<'_>,

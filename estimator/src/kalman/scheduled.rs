@@ -1,14 +1,14 @@
 //! Updates `1..=T` on the blob's gain schedule.
 
-use super::Estimator;
+use super::Kalman;
 use super::kernels::{all_finite, combo, tail};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent};
 
-impl Estimator<'_> {
+impl Kalman<'_> {
     /// One update with a precomputed gain `K` (given as `K^T`, row `k` for
     /// innovation `k`): `g' = F g`, `nu = z - y'`, `g = g' + K nu`. Leaves
     /// `self` alone.
-    pub(super) fn scheduled_update(
+    pub(crate) fn scheduled_update(
         &self,
         z: &Latent,
         kt: &[[f32; AUG_DIM]; LATENT_DIM],
