@@ -34,7 +34,8 @@ use crate::swing::{Centre, Decay, Early, Fit, Period};
 use crate::kalman::kernels::tail;
 use crate::kalman::{AugMatrix, AugVector, Kalman};
 use crate::model::Model;
-use crate::trust::{EnvelopeWindow, Spread, SwingWindow};
+use crate::swing::SwingWindow;
+use crate::trust::{EnvelopeWindow, Spread};
 use crate::trust::{Consistency, Kinematics};
 use crate::{Error, Latent, PARAM_DIM, State};
 

@@ -125,19 +125,15 @@ impl Estimator<'_> {
         self.kinematics.gap();
     }
 
-    /// Whether a measurement whose normalised innovation squared is `nis`
-    /// is refused: more than the blob's bound times the mean of those
+    /// The normalised innovation squared above which a measurement is
+    /// refused (`None`: none is): the blob's bound times the mean of those
     /// before it (a glitch stands out from its neighbours; a model that
     /// fits every measurement badly is the consistency check's to flag),
-    /// and not the [`MAX_OUTLIER_RUN`]-th in a row.
-    pub(super) fn is_outlier(&self, nis: f32) -> bool {
+    /// unless it would be the [`MAX_OUTLIER_RUN`]-th in a row.
+    pub(super) fn outlier_gate(&self) -> Option<f32> {
         let bound = self.model.blob().body.trust.max_step_nis;
-        bound > 0.0
-            && self.outlier_run < MAX_OUTLIER_RUN
-            && self
-                .consistency
-                .mean()
-                .is_some_and(|mean| mean > 0.0 && nis > bound * mean)
+        let mean = self.consistency.mean()?;
+        (bound > 0.0 && self.outlier_run < MAX_OUTLIER_RUN && mean > 0.0).then_some(bound * mean)
     }
 
     /// Refuses this measurement as an outlier: the filter predicts across

@@ -3,7 +3,9 @@
 //! the parameters' correction counted, then what the step observed.
 
 use super::{Estimator, StepOutput};
-use crate::trust::{Consistency, EnvelopeWindow, Kinematics, Spread, SwingWindow};
+use crate::kalman::Updated;
+use crate::swing::SwingWindow;
+use crate::trust::{Consistency, EnvelopeWindow, Kinematics, Spread};
 use crate::{Error, Latent, PARAM_DIM, State};
 
 impl Estimator<'_> {
@@ -32,17 +34,10 @@ impl Estimator<'_> {
         // state) is refused like an outlier (and where even the
         // prediction across it fails, the step is refused with the state
         // unchanged).
-        let update = match self.kalman.update(z) {
-            Err(Error::FilterNotPositiveDefinite) => return self.refuse(f32::INFINITY),
-            other => other?,
+        let (correction, nis) = match self.kalman.update(z, self.outlier_gate())? {
+            Updated::Taken { correction, nis } => (correction, nis),
+            Updated::Refused(nis) => return self.refuse(nis),
         };
-        if let Some(n) = update.nis
-            && self.is_outlier(n)
-        {
-            return self.refuse(n);
-        }
-        let nis = update.nis;
-        let correction = self.kalman.take(update);
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);
         if self.kalman.t >= self.burn_until.max(burn_in) {
             self.spread.push(&correction);

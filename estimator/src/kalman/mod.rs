@@ -68,7 +68,7 @@ mod scheduled;
 mod two_stage;
 
 pub(crate) use full::prior_covariance;
-use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail};
+use kernels::{Cov, ParamSquare, Sensitivity, combo, mirror_upper, sqrt_diag, tail as tail_of};
 
 use crate::model::{Model, Tail};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
@@ -105,16 +105,18 @@ pub(crate) struct Kalman<'m> {
     pub(crate) bridged: bool,
 }
 
-/// One update, computed and not yet taken ([`Kalman::update`]).
-pub(crate) struct Update {
-    mean: Aug,
-    v: Sensitivity,
-    pb: ParamSquare,
-    /// `P` where the whole recursion ran.
-    p: Option<Cov>,
-    param_std: [f32; PARAM_DIM],
-    /// The normalised innovation squared, where the recursion forms it.
-    pub(crate) nis: Option<f32>,
+/// What an update did ([`Kalman::update`]).
+pub(crate) enum Updated {
+    /// Taken: the correction it made to each parameter's coordinate, and
+    /// its normalised innovation squared where the recursion forms it.
+    Taken {
+        correction: [f32; PARAM_DIM],
+        nis: Option<f32>,
+    },
+    /// Refused, the state unchanged: its normalised innovation squared was
+    /// above the gate (infinite where its innovation covariance was not
+    /// positive definite in f32).
+    Refused(f32),
 }
 
 impl<'m> Kalman<'m> {
@@ -152,82 +154,68 @@ impl<'m> Kalman<'m> {
     }
 
     /// The next update on `z`, along the schedule, its two-stage tail or
-    /// the whole recursion; `self` is left alone until [`Kalman::take`].
+    /// the whole recursion. Where the whole recursion runs, a measurement
+    /// whose normalised innovation squared is above `gate`, or that it
+    /// cannot take (its innovation covariance not positive definite in
+    /// f32: a glitch on an ill-conditioned state), is refused and the
+    /// state left as it was.
     ///
     /// # Errors
     ///
-    /// [`Error::FilterNotPositiveDefinite`] where the whole recursion
-    /// cannot take `z` (its innovation covariance not positive definite
-    /// in f32); another filter error if the arithmetic breaks down.
-    pub(crate) fn update(&self, z: &Latent) -> Result<Update, Error> {
+    /// A filter error if the arithmetic breaks down; the state is
+    /// unchanged.
+    pub(crate) fn update(&mut self, z: &Latent, gate: Option<f32>) -> Result<Updated, Error> {
         let t = self.t.saturating_add(1);
+        let (mut v, mut pb) = (self.v, self.pb);
+        // The normalised innovation where the recursion forms S^-1.
+        let mut nis = None;
         let tail = self.model.schedule_tail().filter(|_| self.uses_schedule());
-        match (tail, self.model.scheduled_gain(t)) {
+        let (m, param_std) = match (tail, self.model.scheduled_gain(t)) {
             (Some(tail), Some((kt, std))) => {
-                let mean = self.scheduled_update(z, kt)?;
+                let m = self.scheduled_update(z, kt)?;
                 // After the last scheduled update the filter goes on in
                 // two-stage form from the blob's V_T and P_b,T.
-                let (v, pb) = if t == self.model.schedule_steps() {
-                    (*tail.v, *tail.pb)
-                } else {
-                    (self.v, self.pb)
-                };
-                Ok(Update {
-                    mean,
-                    v,
-                    pb,
-                    p: None,
-                    param_std: *std,
-                    nis: None,
-                })
+                if t == self.model.schedule_steps() {
+                    (v, pb) = (*tail.v, *tail.pb);
+                }
+                (m, *std)
             }
             (Some(tail), None) => {
-                let (mean, v, pb) = self.two_stage_update(z, tail)?;
-                let param_std = sqrt_diag(&pb, 0);
-                Ok(Update {
-                    mean,
-                    v,
-                    pb,
-                    p: None,
-                    param_std,
-                    nis: None,
-                })
+                let m;
+                (m, v, pb) = self.two_stage_update(z, tail)?;
+                (m, sqrt_diag(&pb, 0))
             }
             (None, _) => {
-                let mut nis = 0.0;
-                let (mean, p) = self.predict_update(z, &mut nis)?;
-                let param_std = sqrt_diag(&p, LATENT_DIM);
-                Ok(Update {
-                    mean,
-                    v: self.v,
-                    pb: self.pb,
-                    p: Some(p),
-                    param_std,
-                    nis: Some(nis),
-                })
+                let mut n = 0.0;
+                let (m, new_p) = match self.predict_update(z, &mut n) {
+                    Err(Error::FilterNotPositiveDefinite) => {
+                        return Ok(Updated::Refused(f32::INFINITY));
+                    }
+                    other => other?,
+                };
+                if gate.is_some_and(|g| n > g) {
+                    return Ok(Updated::Refused(n));
+                }
+                // P only where the recursion runs here (it is 1296 bytes
+                // to copy), once the measurement is taken.
+                self.p = new_p;
+                nis = Some(n);
+                (m, sqrt_diag(&self.p, LATENT_DIM))
             }
-        }
-    }
-
-    /// Takes the update `u`; returns the correction it made to each
-    /// parameter's coordinate.
-    pub(crate) fn take(&mut self, u: Update) -> [f32; PARAM_DIM] {
-        if let Some(p) = u.p {
-            self.p = p;
-        }
+        };
         let mut correction = [0.0; PARAM_DIM];
         for (c, (new, old)) in correction
             .iter_mut()
-            .zip(tail(&u.mean).iter().zip(tail(&self.mean)))
+            .zip(tail_of(&m).iter().zip(tail_of(&self.mean)))
         {
             *c = new - old;
         }
-        self.mean = u.mean;
-        self.v = u.v;
-        self.pb = u.pb;
-        self.param_std = u.param_std;
-        self.t = self.t.saturating_add(1);
-        correction
+        self.mean = m;
+        self.v = v;
+        self.pb = pb;
+        self.param_std = param_std;
+        self.t = t;
+        Ok(Updated::Taken { correction, nis })
     }
 
     /// One model step without a measurement: `g = F g`, `P = F P F^T +

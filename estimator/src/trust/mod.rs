@@ -27,7 +27,6 @@ internal! {
     pub use running::consistency_statistic;
 }
 pub(crate) use running::{Consistency, EnvelopeWindow, Kinematics, Spread};
-pub(crate) use crate::swing::SwingWindow;
 
 /// The largest relative standard deviation of the period's length that
 /// confirms a length ([`Reason`]).
@@ -295,7 +294,7 @@ pub(crate) struct Checks {
     /// The swing at least the calibrated smallest.
     pub swing_ok: bool,
     /// The largest unevenness remembered of a swing at least the
-    /// smallest trusted ([`SwingWindow::most_uneven`]) at most the
+    /// smallest trusted (`SwingWindow::most_uneven`) at most the
     /// calibrated largest.
     pub even: bool,
     /// The consistency statistic ([`consistency_statistic`]: the mean
