@@ -50,10 +50,21 @@ impl Estimator<'_> {
         // settling a window after its parameters were reopened.
         let settled_again = !self.reopened()
             || self.kalman.t >= self.burn_until.saturating_add(crate::WINDOW as u32);
-        if self.swing.push(theta, rate, min_swing) >= self.swing_floor() && settled_again {
+        let readable = self.swing.push(theta, rate, min_swing) >= self.swing_floor();
+        if readable && settled_again {
             self.held = Some((*tail(&self.kalman.mean), self.kalman.param_std, self.period.omega_squared()));
         }
-        self.kinematics.push(theta, rate, self.model.blob().body.dt);
+        // While an estimate is held (the swing too small to read), what
+        // the small swing measures counts for the rate check no more than
+        // for the estimate: at rest the rate's noise alone pulls the ratio
+        // down (a swing stopped for ten minutes of a long recording
+        // flagged a right length held from before). An estimate not held
+        // moves with what it measures, and so does the check.
+        if readable || self.held.is_none() {
+            self.kinematics.push(theta, rate, self.model.blob().body.dt);
+        } else {
+            self.kinematics.gap();
+        }
         let burn_in = u32::from(self.model.blob().body.filter.burn_in);
         let settled = self.kalman.t >= self.burn_until.max(burn_in);
         let q = tail(&self.kalman.mean).first().copied().filter(|_| settled);

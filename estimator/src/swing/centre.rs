@@ -53,7 +53,7 @@
 /// Unit: a share (of the swing). Chosen by a sweep (afresh at any share,
 /// 0.1, 0.2, 0.4) on lab-check seeds 12, 14, 15 and 16 (800): 0.2 had the
 /// most within 5% after 64 measurements, 564 from three turning points and
-/// 605 from two (sweep: docs/tuning.md#filterreopen_share).
+/// 605 from two (sweep: docs/tuning.md#swingcentrereopen_share).
 pub(crate) const REOPEN_SHARE: f32 = 0.2;
 
 /// The share of the last half swing's largest rate that the rate must
@@ -98,7 +98,7 @@ const PAIR_DAMPED_SHARE: f32 = 0.5;
 ///
 /// Unit: a share (dimensionless). Chosen by a sweep on lab-check seeds 12,
 /// 14, 15 and 16 (800): 0.35 let one wrong and trusted through where 0.2
-/// let two, two fewer right (sweep: docs/tuning.md#filtercentrerest_share).
+/// let two, two fewer right (sweep: docs/tuning.md#swingcentrerest_share).
 const REST_SHARE: f32 = 0.35;
 /// The smallest swing (half the range between turning points, rad) a
 /// triple is read from: below it the tracking noise dominates.

@@ -66,7 +66,7 @@ pub(crate) const MIN_HALVES: u16 = 8;
 /// alone) on the real-rig lab-check's seeds 12, 14, 15 and 16 and seed 41's
 /// long recordings: from 12, 678 of the 764 right lengths trusted at the
 /// end rather than 616, none more wrong and trusted (sweep:
-/// docs/tuning.md#filterdecaylong_halves).
+/// docs/tuning.md#swingdecaylong_halves).
 pub(crate) const LONG_HALVES: u16 = 12;
 /// The largest relative standard deviation of a `Q` that replaces one
 /// read more sharply (the last such is held while the swing dies into
@@ -75,7 +75,7 @@ pub(crate) const LONG_HALVES: u16 = 12;
 ///
 /// Unit: relative (a share of `Q`). Chosen by a sweep (0.25, 0.12, 0.08) on
 /// lab recordings of seeds 29 and 37: 0.08 kept the most `Q` within 25%
-/// (sweep: docs/tuning.md#filterdecayhold).
+/// (sweep: docs/tuning.md#swingdecayhold).
 pub(crate) const HOLD: f32 = 0.08;
 /// The smallest amplitude the last third's fit reads, rad (a swing's
 /// envelope reads to the tracker's noise).
@@ -83,7 +83,7 @@ pub(crate) const HOLD: f32 = 0.08;
 /// Unit: rad. Chosen with [`WINDOW_SHARP`] by a sweep on envelope seeds
 /// 401-440 and lab-check seeds 29, 31 and 41: at 0.005, `Q` within 25% of
 /// the envelope on 79%, at 0.01 on 73% (sweep:
-/// docs/tuning.md#filterdecayread_amplitude).
+/// docs/tuning.md#swingdecayread_amplitude).
 pub(crate) const READ_AMPLITUDE: f32 = 0.005;
 /// The largest relative standard deviation of the last third's fit (its
 /// bend not counted) whose `Q` is reported; a wider one gives way to the
@@ -91,7 +91,7 @@ pub(crate) const READ_AMPLITUDE: f32 = 0.005;
 ///
 /// Unit: relative (a share of `Q`). Chosen with [`READ_AMPLITUDE`] by the
 /// same sweep (0.2, 0.3, 0.4, any; sweep:
-/// docs/tuning.md#filterdecayread_amplitude).
+/// docs/tuning.md#swingdecayread_amplitude).
 pub(crate) const WINDOW_SHARP: f32 = 0.3;
 /// `Q`'s relative spread over the swings a last third holds, and between
 /// ways of reading its envelope: added to the reported standard deviation
@@ -100,7 +100,7 @@ pub(crate) const WINDOW_SHARP: f32 = 0.3;
 /// Unit: relative (a share of `Q`). Chosen by a sweep (0.08, 0.1, 0.12) on
 /// envelope seeds 401-420 and 441-460: the envelope within 2 standard
 /// deviations on 83% and 91% at 0.1 (sweep:
-/// docs/tuning.md#filterdecayspread).
+/// docs/tuning.md#swingdecayspread).
 pub(crate) const SPREAD: f32 = 0.1;
 /// Half swings each part of the last third holds at least for its bend
 /// to be read ([`bend`]).
@@ -122,12 +122,12 @@ pub(crate) const DURATION_SPREAD: f32 = 0.3;
 /// --seconds 60,120 --mixed`; docs/damping.md).
 ///
 /// Unit: dimensionless (a ratio of standard deviations). The grid's other
-/// points were not logged (docs/tuning.md#filterdecaystd_scale).
+/// points were not logged (docs/tuning.md#swingdecaystd_scale).
 pub(crate) const STD_SCALE: f32 = 2.5;
 /// A floor on `Q`'s relative standard deviation (see [`STD_SCALE`]).
 ///
 /// Unit: relative (a share of `Q`). Chosen with [`STD_SCALE`] on the same
-/// grid on seed 29 (docs/tuning.md#filterdecaystd_scale).
+/// grid on seed 29 (docs/tuning.md#swingdecaystd_scale).
 pub(crate) const STD_FLOOR: f32 = 0.03;
 
 /// The decay so far and the `Q` it gives.

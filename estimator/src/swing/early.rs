@@ -51,13 +51,13 @@ const SPAN_GATE: f32 = 0.35;
 /// Unit: rad. Chosen by a sweep (0.0025, 0.005, 0.01) on lab-check seeds
 /// 12, 14, 15 and 16 while half swings were timed at zero crossings: 0.005
 /// had the most within 5% after 64, 681 (sweep:
-/// docs/tuning.md#filterearlycrossing_noise).
+/// docs/tuning.md#swingearlycrossing_noise).
 const CROSSING_NOISE: f32 = 0.005;
 /// The least relative standard deviation of a half swing's duration.
 ///
 /// Unit: relative (dimensionless). Compared with 0.02 on the same seeds and
 /// timing: 681 within 5% after 64 rather than 669 (sweep:
-/// docs/tuning.md#filterearlyhalf_rel_floor).
+/// docs/tuning.md#swingearlyhalf_rel_floor).
 const HALF_REL_FLOOR: f32 = 0.01;
 /// The largest share of the first half swing's range the angle may move in
 /// its first quarter for the recording's first angle to be its release

@@ -75,12 +75,12 @@ pub(crate) const FORGET_BELOW: u16 = 8;
 /// Unit: dimensionless (a ratio). Chosen with [`STD_FLOOR`] by comparing
 /// three pairs on lab-check seeds 12, 14, 15 and 16 (800): at 1.5 and 5e-4
 /// the length's 2-std band covers the truth on 94% of those with a period
-/// (sweep: docs/tuning.md#filterperiodstd_scale).
+/// (sweep: docs/tuning.md#swingperiodstd_scale).
 pub(crate) const STD_SCALE: f32 = 1.5;
 /// A floor on `k`'s relative standard deviation (see [`STD_SCALE`]).
 ///
 /// Unit: relative (dimensionless). Chosen with [`STD_SCALE`] (sweep:
-/// docs/tuning.md#filterperiodstd_scale).
+/// docs/tuning.md#swingperiodstd_scale).
 pub(crate) const STD_FLOOR: f32 = 5e-4;
 /// The share of the range of the amplitude's correction `c` over the
 /// half swings read that `k`'s relative standard deviation carries
@@ -89,13 +89,13 @@ pub(crate) const STD_FLOOR: f32 = 5e-4;
 /// period's the same way, so the spread does not show it. An undamped
 /// swing's `c` stays put and adds nothing.
 ///
-/// Unit: a share (of a range of `c`, dimensionless). Compared with 0.05
-/// and none on lab-check seeds 11 and 12: the widest the period can be and
-/// still confirm wide swings (`trust::PERIOD_SHARP`); the 2-std band at
-/// the end of swings released at 1 rad or more then covers 12 of 12 and
-/// 19 of 23 rather than 9 and 15 (sweep:
-/// docs/tuning.md#filterperiodamplitude_share).
-pub(crate) const AMPLITUDE_SHARE: f32 = 0.02;
+/// Unit: a share (of a range of `c`, dimensionless). Compared with 0.02,
+/// 0.05 and none on lab-check seeds 11 and 12: the 2-std band at the end
+/// of swings released at 1 rad or more covers 12 of 12 and 19 of 23
+/// rather than 9 and 15, as at 0.02, and the shared Tracker recording's
+/// length moves by 0.06% rather than 0.14% (sweep:
+/// docs/tuning.md#swingperiodamplitude_share).
+pub(crate) const AMPLITUDE_SHARE: f32 = 0.01;
 
 /// The crossings so far and the period they give. Times are in steps
 /// from the step the last turning point was found at (exact in `f32`

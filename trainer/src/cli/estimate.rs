@@ -305,6 +305,7 @@ impl<'a> Report<'a> {
             "offset": out.offset, "offset_std": out.offset_std, "outliers": out.outliers,
             "q_factor": out.q_factor, "q_factor_std": out.q_factor_std, "q_swing": out.q_swing,
             "period_length": out.period_length, "period_length_std": out.period_length_std,
+            "model_params": only_read(&tracked.model),
         });
         if let Some(s) = source {
             add_source(&mut v, s);

@@ -15,6 +15,9 @@ pub struct Tracked {
     pub measured: usize,
     /// Model steps predicted without a sample (inside gaps).
     pub predicted: u64,
+    /// The learned model's own parameters at the end, before the swing's
+    /// readers are joined with them ([`Estimator::model_params`]).
+    pub model: [f32; estimator::PARAM_DIM],
 }
 
 /// Runs `est` over the first `limit` samples of `r` (all when `None`),
@@ -88,10 +91,12 @@ impl Run {
         let out = est.step(&[x[0] as f32, x[1] as f32]).map_err(fail)?;
         measured += 1;
         self.last = Some(t);
+        let model = est.model_params(&out.coordinate);
         Ok(self.tracked.insert(Tracked {
             out,
             measured,
             predicted,
+            model,
         }))
     }
 }
