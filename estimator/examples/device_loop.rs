@@ -80,7 +80,9 @@ fn report(t: f32, out: &StepOutput) {
         "{t:5.0} s  L = {:.3} m +- {:.3}  offset {}  {}{reason}",
         out.params[0],
         2.0 * out.param_std[0],
-        out.offset.map_or("-".into(), |o| format!("{o:+.3} rad")),
+        out.readers
+            .offset
+            .map_or("-".into(), |o| format!("{o:+.3} rad")),
         if out.trust.is_trusted() {
             "trusted"
         } else if out.trust.is_untrusted() {

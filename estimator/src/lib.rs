@@ -6,7 +6,7 @@
 //! latent `y`, and the physical parameters `p` (the length, and one effect
 //! such as damping) ride along, so that a Kalman filter over `[y; p]`
 //! estimates them as the measurements come. Beside it, the swing's own
-//! period gives a length ([`StepOutput::period_length`]); the length
+//! period gives a length ([`Readers::period_length`]); the length
 //! reported joins the two. Each step returns the
 //! estimate, its standard deviation and a [`Trust`] verdict with its
 //! [`Reason`]s. `no_std`, no allocator, fixed sizes, no panics: the blob
@@ -105,7 +105,7 @@ internal! {
 }
 
 pub use error::Error;
-pub use filter::{Estimator, MAX_ABS_INPUT, StepOutput};
+pub use filter::{CheckReport, Estimator, FilterReport, MAX_ABS_INPUT, Readers, StepOutput};
 pub use kalman::{AugMatrix, AugVector};
 pub use model::Model;
 pub use rig::{Rig, UnknownRig};

@@ -361,7 +361,7 @@ fn gap(est: &Estimator<'_>, out: &estimator::StepOutput, r: &Reference) -> (f64,
     let e_std = (0..2)
         .map(|k| {
             let s = r.p[(LATENT_DIM + k, LATENT_DIM + k)].sqrt();
-            (f64::from(out.coordinate_std[k]) - s).abs() / s
+            (f64::from(out.filter.coordinate_std[k]) - s).abs() / s
         })
         .fold(0.0, f64::max);
     (e_mean, e_std)
@@ -414,7 +414,7 @@ fn the_estimator_matches_the_f64_extended_filter_with_a_gap() {
                     r.predict();
                 }
                 assert_eq!(out.t as usize, t + 19);
-                assert_eq!(out.correction, [0.0; 2]);
+                assert_eq!(out.filter.correction, [0.0; 2]);
                 assert_eq!(est.mean().rows(LATENT_DIM, 2), before, "q static");
                 t += 20;
                 out
@@ -581,12 +581,13 @@ fn check(op: &Op, est: &mut Estimator<'_>) -> Result<Option<estimator::AugMatrix
     match op.apply(est) {
         Ok(out) => {
             prop_assert!(
-                out.coordinate
+                out.filter
+                    .coordinate
                     .iter()
-                    .chain(&out.coordinate_std)
+                    .chain(&out.filter.coordinate_std)
                     .all(|v| v.is_finite())
             );
-            prop_assert!(out.coordinate_std.iter().all(|v| *v >= 0.0));
+            prop_assert!(out.filter.coordinate_std.iter().all(|v| *v >= 0.0));
             prop_assert!(out.params.iter().all(|v| !v.is_nan()));
             prop_assert!(out.param_std.iter().all(|v| *v >= 0.0));
             // Without a schedule P is always kept.

@@ -79,7 +79,7 @@ fn a_2_hz_source_on_a_short_string_is_flagged_to_the_end() {
 fn a_coarse_sources_derived_rate_is_not_another_unit() {
     let (outs, _) = read(0.14, 6.0);
     let end = outs.last().unwrap();
-    let ratio = end.rate_ratio.unwrap();
+    let ratio = end.checks.rate_ratio.unwrap();
     assert!((1.33..1.5).contains(&ratio), "{ratio}");
     assert!(
         outs.iter()

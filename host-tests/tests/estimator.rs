@@ -300,7 +300,7 @@ fn a_non_physical_length_is_never_trusted() {
                 } else if out.trust != Trust::Pending {
                     // The sigma check names itself exactly when sigma is
                     // above the threshold.
-                    let unsettled = out.sigma[0] > threshold;
+                    let unsettled = out.filter.sigma[0] > threshold;
                     assert_eq!(
                         out.trust.reasons().contains(&Reason::Unsettled),
                         unsettled,
@@ -485,7 +485,7 @@ fn length_estimates_and_sigma_on_the_test_set() {
             }
             let out = last.unwrap();
             est_sum += f64::from(out.params[0]);
-            sigma_sum += f64::from(out.sigma[0]);
+            sigma_sum += f64::from(out.filter.sigma[0]);
         }
         (est_sum / 10.0, sigma_sum / 10.0)
     };
@@ -565,8 +565,8 @@ fn a_declared_gravity_scales_the_length_only() {
     // One f32 multiplication apart: 1e-6 relative is a few ulps.
     assert!((out.params[0] - plain.params[0] * ratio).abs() <= 1e-6 * out.params[0]);
     assert!((out.param_std[0] - plain.param_std[0] * ratio).abs() <= 1e-6 * out.param_std[0]);
-    assert_eq!(out.coordinate, plain.coordinate);
-    assert_eq!(out.sigma, plain.sigma);
+    assert_eq!(out.filter.coordinate, plain.filter.coordinate);
+    assert_eq!(out.filter.sigma, plain.filter.sigma);
     assert_eq!(out.trust, plain.trust);
     // The undeclared padding parameter does not scale.
     assert_eq!(out.params[1], plain.params[1]);
@@ -617,7 +617,7 @@ fn friction_that_lowers_the_turning_points_is_named() {
     let mut p = Pendulum::new(4.27);
     let clean = run(&p);
     assert!((f64::from(clean.params[0]) - 4.27).abs() < 0.2 * 4.27);
-    let even = clean.unevenness.unwrap();
+    let even = clean.checks.unevenness.unwrap();
     assert!(
         even < 0.046 && even < m.blob().body.trust.max_unevenness,
         "{even}"
@@ -626,7 +626,7 @@ fn friction_that_lowers_the_turning_points_is_named() {
     p.effects.push(Effect::new(EffectKind::Coulomb, 0.27));
     let out = run(&p);
     assert!(f64::from(out.params[0]) > 1.2 * 4.27, "{}", out.params[0]);
-    let u = out.unevenness.unwrap();
+    let u = out.checks.unevenness.unwrap();
     assert!(u > m.blob().body.trust.max_unevenness, "{u}");
     assert!(
         out.trust.reasons().contains(&Reason::UnevenSwing),
@@ -661,24 +661,25 @@ fn the_worst_window_is_remembered_and_a_gap_breaks_the_rate_chain() {
         xs.len() - 45 > WINDOW,
         "the off stretch has left the window"
     );
-    assert!(out.off_envelope >= 5, "{}", out.off_envelope);
+    assert!(out.checks.off_envelope >= 5, "{}", out.checks.off_envelope);
     assert!(out.trust.reasons().contains(&Reason::OutsideEnvelope));
     est.reset();
     let out = est.step(&xs[0]).unwrap();
-    assert_eq!(out.off_envelope, 0);
+    assert_eq!(out.checks.off_envelope, 0);
 
     // The rate chain: measurements, a predicted step, measurements again.
     let mut a = Estimator::new(&m).with_gravity(10.0).unwrap();
     for x in &xs[..20] {
         a.step(x).unwrap();
     }
-    let before = a.step(&xs[20]).unwrap().rate_ratio.unwrap();
+    let before = a.step(&xs[20]).unwrap().checks.rate_ratio.unwrap();
     a.predict().unwrap();
     // Far from the last measurement: counted across the gap, the pair
     // would pull the ratio far off.
     let after = a
         .step(&[xs[20][0] + 1.0, xs[20][1]])
         .unwrap()
+        .checks
         .rate_ratio
         .unwrap();
     assert_eq!(before, after, "the pair across the gap was counted");
@@ -730,7 +731,7 @@ fn the_estimate_is_held_over_a_swing_too_small_to_read() {
     assert!(outs[first_held..].iter().all(|o| o.held));
     let wide = &outs[wide];
     assert_eq!(out.param_std, wide.param_std);
-    assert_eq!(out.coordinate, wide.coordinate);
+    assert_eq!(out.filter.coordinate, wide.filter.coordinate);
     // Read within 5% from the wide swing.
     assert!(
         (f64::from(out.params[0]) - 0.5).abs() < 0.05 * 0.5,
@@ -739,7 +740,7 @@ fn the_estimate_is_held_over_a_swing_too_small_to_read() {
     );
     // The filter ran on: its own coordinate is not the held one.
     let q = est.mean()[estimator::LATENT_DIM];
-    assert_ne!(q, out.coordinate[0]);
+    assert_ne!(q, out.filter.coordinate[0]);
     est.reset();
     assert!(!est.step(&xs[0]).unwrap().held);
 }
@@ -764,8 +765,8 @@ fn encoded_measurements_pass_a_law_that_reads_the_swing() {
         last = Some(est.step_latent(&z).unwrap());
     }
     let out = last.unwrap();
-    assert!(out.nis.is_some());
-    assert_eq!(out.consistency, None);
+    assert!(out.filter.nis.is_some());
+    assert_eq!(out.checks.consistency, None);
     assert!(!out.held);
     assert!(
         !out.trust.reasons().contains(&Reason::Inconsistent),

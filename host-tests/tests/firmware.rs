@@ -186,7 +186,7 @@ fn quality_factor_differences(
     tol: impl Fn(f32) -> f32,
 ) -> Vec<f32> {
     let mut out = Vec::new();
-    for (hex, hv) in hex.iter().zip([h.q_factor, h.q_factor_std]) {
+    for (hex, hv) in hex.iter().zip([h.readers.q_factor, h.readers.q_factor_std]) {
         let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
         match hv {
             None => assert!(fv.is_nan(), "{line}: firmware {fv}, host none"),
@@ -282,7 +282,7 @@ fn firmware_in_qemu_matches_the_host() {
             assert_eq!(w[1].parse::<u32>().unwrap(), id, "{line}");
             assert_eq!(w[2], mode, "{line}");
             assert_eq!(w[3].parse::<u32>().unwrap(), h.t, "{line}");
-            let host_vals = h.params.iter().chain(&h.param_std).chain(&h.sigma);
+            let host_vals = h.params.iter().chain(&h.param_std).chain(&h.filter.sigma);
             for (hex, hv) in w[4..10].iter().zip(host_vals) {
                 let fv = f32::from_bits(u32::from_str_radix(hex, 16).unwrap());
                 let d = (fv - hv).abs();

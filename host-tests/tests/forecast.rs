@@ -41,7 +41,11 @@ fn a_forecast_swings_about_the_measured_offset() {
     let mut est = Estimator::new(&m).with_gravity(LAB_G as f32).unwrap();
     let mut offset = None;
     for x in seen {
-        offset = est.step(&[x[0] as f32, x[1] as f32]).unwrap().offset;
+        offset = est
+            .step(&[x[0] as f32, x[1] as f32])
+            .unwrap()
+            .readers
+            .offset;
     }
     assert!(
         offset.is_some_and(|o| (o - 0.08).abs() < 0.01),

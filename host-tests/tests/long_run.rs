@@ -53,9 +53,10 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
             .unwrap_or_else(|e| panic!("step {t}, full recursion: {e}"));
         last = Some(out.clone());
         assert!(
-            out.coordinate
+            out.filter
+                .coordinate
                 .iter()
-                .chain(&out.coordinate_std)
+                .chain(&out.filter.coordinate_std)
                 .chain(&out.params)
                 .chain(&out.param_std)
                 .all(|v| v.is_finite()),
@@ -100,7 +101,7 @@ fn a_million_noisy_steps_keep_the_covariance_healthy() {
     eprintln!(
         "{STEPS} steps: L = {:.4} (true 3.5), std {:.2e} (coordinate {:.4}, std {:.2e}), \
          smallest var of the coordinate {min_var:.2e}, largest two-stage gap {worst_gap:.1e}",
-        last.params[0], last.param_std[0], last.coordinate[0], last.coordinate_std[0]
+        last.params[0], last.param_std[0], last.filter.coordinate[0], last.filter.coordinate_std[0]
     );
     assert!(min_var > 0.0);
 }
@@ -142,7 +143,7 @@ fn the_filter_recovers_after_a_burst_of_refused_measurements() {
             } else {
                 let out = est.step(x).unwrap();
                 assert_eq!(out, gap.step(x).unwrap(), "step {t}");
-                assert!(out.coordinate.iter().all(|v| v.is_finite()));
+                assert!(out.filter.coordinate.iter().all(|v| v.is_finite()));
             }
         }
         let (a, b) = (est.mean()[16], clean.mean()[16]);

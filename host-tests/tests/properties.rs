@@ -141,8 +141,8 @@ proptest! {
             let before = (est.mean(), est.covariance());
             match est.step(x) {
                 Ok(out) => {
-                    prop_assert!(out.coordinate.iter().chain(&out.coordinate_std).all(|v| v.is_finite()));
-                    prop_assert!(out.coordinate_std.iter().all(|v| *v >= 0.0));
+                    prop_assert!(out.filter.coordinate.iter().chain(&out.filter.coordinate_std).all(|v| v.is_finite()));
+                    prop_assert!(out.filter.coordinate_std.iter().all(|v| *v >= 0.0));
                     // The reading of a coordinate at lo + hi is infinite
                     // (reported as it is), never NaN.
                     prop_assert!(out.params.iter().all(|v| !v.is_nan()));

@@ -67,7 +67,7 @@ fn compare<'a, O: Oracle + 'a>(m: &'a Model<'a>, start: impl Fn(&Latent) -> O) -
                 // The oracles run the filter's state, so the comparison is
                 // in the length's coordinate (`coordinate`, equal to the
                 // length at the training lengths).
-                let err = (out.coordinate[0] as f64 - l).abs();
+                let err = (out.filter.coordinate[0] as f64 - l).abs();
                 worst = worst.max(err);
                 // f32 against another filter over 127 steps of an 18-dim
                 // filter: 1e-3 on a coordinate of metres (the estimate's
@@ -76,13 +76,13 @@ fn compare<'a, O: Oracle + 'a>(m: &'a Model<'a>, start: impl Fn(&Latent) -> O) -
                     err < 1e-3,
                     "rollout {} step {t} mode {mode}: L {} vs {l}",
                     r.id,
-                    out.coordinate[0]
+                    out.filter.coordinate[0]
                 );
                 assert!(
-                    ((out.coordinate_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
+                    ((out.filter.coordinate_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
                     "rollout {} step {t} mode {mode}: std {} vs {std}",
                     r.id,
-                    out.coordinate_std[0]
+                    out.filter.coordinate_std[0]
                 );
             }
         }
@@ -162,22 +162,25 @@ fn predictions_without_a_measurement_match_the_reference_on_every_path() {
                     let out = if hole { est.predict() } else { est.step(x) }.unwrap();
                     assert_eq!(out.t as usize, t);
                     if hole {
-                        assert_eq!(out.correction, [0.0; 2], "a prediction corrects nothing");
+                        assert_eq!(
+                            out.filter.correction, [0.0; 2],
+                            "a prediction corrects nothing"
+                        );
                         // Bridged: P is kept from here on, even on what
                         // was the schedule (which stores only gains).
                         assert!(est.covariance().is_some() && !est.on_schedule());
                     }
-                    let err = (out.coordinate[0] as f64 - l).abs();
+                    let err = (out.filter.coordinate[0] as f64 - l).abs();
                     worst = worst.max(err);
                     assert!(
                         err < 1e-3,
                         "rollout {id} step {t} mode {mode}: L {} vs {l}",
-                        out.coordinate[0]
+                        out.filter.coordinate[0]
                     );
                     assert!(
-                        ((out.coordinate_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
+                        ((out.filter.coordinate_std[0] as f64) - std).abs() < 0.02 * std + 1e-4,
                         "rollout {id} step {t} mode {mode} (first hole {first_hole}): std {} vs {std}",
-                        out.coordinate_std[0]
+                        out.filter.coordinate_std[0]
                     );
                 }
             }

@@ -53,7 +53,7 @@ fn a_small_swing_read_for_long_is_trusted_and_held_where_it_dies() {
     // the estimate is held from before, within 3%.
     let outs = read(0.06, Effect::new(EffectKind::Viscous, 0.1), 60.0);
     let end = outs.last().unwrap();
-    assert!(end.held, "{:?}", end.swing);
+    assert!(end.held, "{:?}", end.checks.swing);
     let err = f64::from(end.params[0]) / 0.5 - 1.0;
     assert!(err.abs() < 0.03, "{err:+.4}");
 }

@@ -179,7 +179,7 @@ pub struct TrustSpec<'a> {
     /// The largest ratio of one measurement's normalised innovation
     /// squared to the mean of those before it that the filter takes:
     /// above it the measurement is refused as an outlier
-    /// ([`StepOutput::outlier`](crate::StepOutput::outlier); 0: none is).
+    /// ([`FilterReport::outlier`](crate::FilterReport::outlier); 0: none is).
     pub max_step_nis: f32,
     /// The fewest samples a period of the source the calibration covers
     /// (0: any source passes;
@@ -257,7 +257,7 @@ impl<'a> Body<'a> {
     /// says nothing of where in it the rig lies, and its standard
     /// deviation is the range, not a reading (the rig blob's viscous
     /// coefficient: `2 b` = 3.65 of a range of 2; its damping is read as
-    /// the quality factor instead, [`StepOutput::q_factor`](crate::StepOutput::q_factor)).
+    /// the quality factor instead, [`Readers::q_factor`](crate::Readers::q_factor)).
     pub fn reads(&self, k: usize) -> bool {
         match (self.params.get(k), self.trust.std_floor.get(k)) {
             (Some(spec), Some(b)) => spec.declared && 2.0 * b < spec.coordinate_span(),

@@ -62,7 +62,7 @@ impl Estimator<'_> {
     /// The parameters at the coordinates `q` with the filter's standard
     /// deviations `q_std`, read with the blob's calibration.
     /// The parameters the filter's coordinate `q` reads as at the declared
-    /// gravity ([`StepOutput::coordinate`] gives it): the learned model's
+    /// gravity ([`FilterReport::coordinate`](crate::FilterReport::coordinate) gives it): the learned model's
     /// own estimate, before the swing's period is joined with it.
     pub fn model_params(&self, q: &[f32; PARAM_DIM]) -> [f32; PARAM_DIM] {
         self.read_params(q, &[0.0; PARAM_DIM]).map(|r| r.value)

@@ -15,7 +15,7 @@
 //!
 //! `p` holds the parameters' coordinates `q`; [`StepOutput::params`] reads
 //! them through each parameter's [`Reading`](crate::blob::Reading) (the
-//! protocol blob's length: `L = 10 / (7 - q)`), and [`StepOutput::coordinate`]
+//! protocol blob's length: `L = 10 / (7 - q)`), and [`FilterReport::coordinate`]
 //! gives them as they are. Corrections, sigma and the trust verdict stay
 //! in the coordinates. While the swing is too small to read the three are
 //! held ([`StepOutput::held`]; the swings are defined in `swing::window`);
@@ -27,7 +27,7 @@ mod output;
 mod unobserved;
 mod update;
 
-pub use output::StepOutput;
+pub use output::{CheckReport, FilterReport, Readers, StepOutput};
 
 use crate::swing::{Centre, Decay, Early, Fit, Period};
 
@@ -92,9 +92,9 @@ pub struct Estimator<'m> {
     /// parameter is read through it). Otherwise the verdict is
     /// [`Reason::GravityUndeclared`](crate::Reason::GravityUndeclared).
     g_known: bool,
-    /// The angle's zero ([`StepOutput::offset`]).
+    /// The angle's zero ([`Readers::offset`]).
     centre: Centre,
-    /// The swing's period ([`StepOutput::period_length`]).
+    /// The swing's period ([`Readers::period_length`]).
     period: Period,
     /// The first half swings, timed before the period reads.
     early: Early,
@@ -115,7 +115,7 @@ pub struct Estimator<'m> {
     /// Updates before which a verdict is not given: a window after the
     /// parameters were started afresh (0: never).
     afresh_until: u32,
-    /// The swing's decay ([`StepOutput::q_factor`]).
+    /// The swing's decay ([`Readers::q_factor`]).
     decay: Decay,
 }
 
@@ -248,7 +248,7 @@ impl<'m> Estimator<'m> {
     /// Forecasts the raw states after the last measurement from the
     /// filter's mean `[y; p]` (not from the last measurement: the mean has
     /// averaged its noise), writing `x_{n+1} ..` into `out`: as measured,
-    /// the angle's offset ([`StepOutput::offset`]) added back.
+    /// the angle's offset ([`Readers::offset`]) added back.
     ///
     /// # Errors
     ///
@@ -332,8 +332,8 @@ impl<'m> Estimator<'m> {
         let mut out = self.update(&z, Some((&centred, &x_n)))?;
         // The swing's readers fed this measurement (they speak from the
         // next step on; the decay's quality factor at once).
-        if let Some(q) = self.read_swing(theta, rate, centred, out.outlier) {
-            (out.q_factor, out.q_factor_std, out.q_swing) = q;
+        if let Some(q) = self.read_swing(theta, rate, centred, out.filter.outlier) {
+            (out.readers.q_factor, out.readers.q_factor_std, out.readers.q_swing) = q;
         }
         Ok(out)
     }

@@ -16,7 +16,9 @@ use crate::PARAM_DIM;
 /// are the check's as a whole).
 const COARSE_X: f32 = 2.5;
 
-/// What one step reports.
+/// What one step reports: the estimate and its verdict, then what the
+/// swing's readers give ([`Readers`]), the filter's own figures
+/// ([`FilterReport`]) and what the checks read ([`CheckReport`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepOutput {
     /// Index of the measurement just consumed (0 for the first).
@@ -27,10 +29,61 @@ pub struct StepOutput {
     pub params: [f32; PARAM_DIM],
     /// Their standard deviations, to first order: `|dp/dq|` times the
     /// coordinate's as calibrated at export, `sqrt((a s)^2 + b^2)` with `s`
-    /// = [`StepOutput::coordinate_std`] and `a`, `b` the blob's
+    /// = [`FilterReport::coordinate_std`] and `a`, `b` the blob's
     /// [`TrustSpec`](crate::blob::TrustSpec) scale and floor (the filter's
     /// own `P` leaves out the model's error).
     pub param_std: [f32; PARAM_DIM],
+    /// The verdict, with its reasons ([`Reason`](crate::Reason)).
+    pub trust: Trust,
+    /// Whether the parameters, their standard deviations and the
+    /// coordinates are held: the recent swing is below the blob's smallest
+    /// trusted (0.03 rad once 12 half swings that wide are read), and
+    /// these are the filter's after the last measurement whose swing was
+    /// not. The filter runs on; a swing never that wide
+    /// is reported as it is (and flagged
+    /// [`Reason::SmallSwing`](crate::Reason::SmallSwing)).
+    pub held: bool,
+    /// What the swing's readers give: the angle's zero, the quality
+    /// factor and the period's length.
+    pub readers: Readers,
+    /// The filter's own figures: its coordinates, corrections and
+    /// innovations.
+    pub filter: FilterReport,
+    /// What the verdict's checks read.
+    pub checks: CheckReport,
+}
+
+/// What the swing's readers give ([`StepOutput::readers`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Readers {
+    /// The angle's zero found from the turning points, rad: subtracted
+    /// from `theta` before the encoder (`None` until three turning
+    /// points).
+    pub offset: Option<f32>,
+    /// Its standard deviation, rad (`None` until two estimates).
+    pub offset_std: Option<f32>,
+    /// The quality factor, `Q = omega / (2 gamma)` from the decay rate
+    /// `gamma` of the swing's amplitude over the recent half swings, at
+    /// the swing [`q_swing`](Self::q_swing) (`None` before eight half
+    /// swings, or while the swing does not decay).
+    pub q_factor: Option<f32>,
+    /// Its calibrated standard deviation.
+    pub q_factor_std: Option<f32>,
+    /// The swing, rad, `q_factor` is at (the recent half swings' mean).
+    pub q_swing: Option<f32>,
+    /// The length the swing's period gives, at the declared gravity, m
+    /// (`None` before two periods of half swings of at least 0.03 rad, or
+    /// for a blob whose first parameter is not a length; a turning point
+    /// found at this step counts from the next): joined with the
+    /// filter's in `params[0]`, each weighted by its inverse variance.
+    pub period_length: Option<f32>,
+    /// Its standard deviation, m.
+    pub period_length_std: Option<f32>,
+}
+
+/// The filter's own figures ([`StepOutput::filter`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterReport {
     /// The filter's coordinates `q` of the parameters (the `p` part of the
     /// mean, or the held one: [`StepOutput::held`]; equal to `params` at
     /// both ends of their training ranges).
@@ -44,15 +97,6 @@ pub struct StepOutput {
     /// `t >= burn_in` so far (0 before there are any), in the coordinates:
     /// what the trust verdict is calibrated on.
     pub sigma: [f32; PARAM_DIM],
-    /// The verdict, with its reasons ([`Reason`](crate::Reason)).
-    pub trust: Trust,
-    /// The most measurements off the training envelope among any
-    /// [`WINDOW`](crate::WINDOW) consecutive ones since the start (within
-    /// the first window, those off so far): what the envelope check
-    /// reads. The estimate holds what every measurement told it, so a
-    /// stretch off the envelope (a swing released wider than trained, a
-    /// knock) leaves it doubtful after the swing has returned.
-    pub off_envelope: u16,
     /// The mean normalised innovation squared since the burn-in,
     /// `nu^T S^-1 nu` with `nu = z - y'` the innovation and `S` its
     /// covariance, over the updates whose recursion runs in full (every
@@ -63,7 +107,28 @@ pub struct StepOutput {
     /// heavier than trained, friction or a torque the model lacks, or
     /// measurements at another interval raise it.
     pub nis: Option<f32>,
-    /// What the consistency check reads: [`StepOutput::nis`] scaled by
+    /// This step's normalised innovation squared, `nu^T S^-1 nu` (`None`
+    /// where the filter does not form it: the gain schedule).
+    pub innovation: Option<f32>,
+    /// This measurement was refused as an outlier (its innovation above
+    /// the blob's [`max_step_nis`](crate::blob::TrustSpec::max_step_nis)):
+    /// the filter predicted across it instead.
+    pub outlier: bool,
+    /// Measurements refused as outliers so far.
+    pub outliers: u32,
+}
+
+/// What the verdict's checks read ([`StepOutput::checks`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    /// The most measurements off the training envelope among any
+    /// [`WINDOW`](crate::WINDOW) consecutive ones since the start (within
+    /// the first window, those off so far): what the envelope check
+    /// reads. The estimate holds what every measurement told it, so a
+    /// stretch off the envelope (a swing released wider than trained, a
+    /// knock) leaves it doubtful after the swing has returned.
+    pub off_envelope: u16,
+    /// What the consistency check reads: [`FilterReport::nis`] scaled by
     /// the blob's law for the length and the widest swing
     /// (the mean itself for a
     /// blob whose law is `[0, 0]`; `None` before any innovation, or where
@@ -88,46 +153,6 @@ pub struct StepOutput {
     /// blob's smallest trusted (`None` before one is measured: see
     /// [`Reason`](crate::Reason)).
     pub unevenness: Option<f32>,
-    /// Whether the parameters, their standard deviations and the
-    /// coordinates are held: the recent swing is below the blob's smallest
-    /// trusted (0.03 rad once 12 half swings that wide are read), and
-    /// these are the filter's after the last measurement whose swing was
-    /// not. The filter runs on; a swing never that wide
-    /// is reported as it is (and flagged
-    /// [`Reason::SmallSwing`](crate::Reason::SmallSwing)).
-    pub held: bool,
-    /// The angle's zero found from the turning points, rad: subtracted
-    /// from `theta` before the encoder (`None` until three turning
-    /// points).
-    pub offset: Option<f32>,
-    /// Its standard deviation, rad (`None` until two estimates).
-    pub offset_std: Option<f32>,
-    /// This step's normalised innovation squared, `nu^T S^-1 nu` (`None`
-    /// where the filter does not form it: the gain schedule).
-    pub innovation: Option<f32>,
-    /// This measurement was refused as an outlier (its innovation above
-    /// the blob's [`max_step_nis`](crate::blob::TrustSpec::max_step_nis)):
-    /// the filter predicted across it instead.
-    pub outlier: bool,
-    /// Measurements refused as outliers so far.
-    pub outliers: u32,
-    /// The quality factor, `Q = omega / (2 gamma)` from the decay rate
-    /// `gamma` of the swing's amplitude over the recent half swings, at
-    /// the swing [`q_swing`](Self::q_swing) (`None` before eight half
-    /// swings, or while the swing does not decay).
-    pub q_factor: Option<f32>,
-    /// Its calibrated standard deviation.
-    pub q_factor_std: Option<f32>,
-    /// The swing, rad, `q_factor` is at (the recent half swings' mean).
-    pub q_swing: Option<f32>,
-    /// The length the swing's period gives, at the declared gravity, m
-    /// (`None` before two periods of half swings of at least 0.03 rad, or
-    /// for a blob whose first parameter is not a length; a turning point
-    /// found at this step counts from the next): joined with the
-    /// filter's in `params[0]`, each weighted by its inverse variance.
-    pub period_length: Option<f32>,
-    /// Its standard deviation, m.
-    pub period_length_std: Option<f32>,
 }
 
 impl Estimator<'_> {
@@ -229,28 +254,34 @@ impl Estimator<'_> {
             t: self.kalman.t,
             params,
             param_std,
-            coordinate,
-            coordinate_std,
-            correction,
-            sigma,
             trust: checks.verdict(),
-            off_envelope: self.worst_off,
-            nis: self.consistency.mean(),
-            consistency,
-            rate_ratio: self.kinematics.ratio(),
-            swing: swing.unwrap_or(f32::NAN),
-            unevenness,
             held: held.is_some(),
-            offset,
-            offset_std,
-            innovation: self.innovation,
-            outlier: self.outlier,
-            outliers: self.outliers,
-            q_factor,
-            q_factor_std,
-            q_swing,
-            period_length: period.map(|p| p.0),
-            period_length_std: period.map(|p| p.1),
+            readers: Readers {
+                offset,
+                offset_std,
+                q_factor,
+                q_factor_std,
+                q_swing,
+                period_length: period.map(|p| p.0),
+                period_length_std: period.map(|p| p.1),
+            },
+            filter: FilterReport {
+                coordinate,
+                coordinate_std,
+                correction,
+                sigma,
+                nis: self.consistency.mean(),
+                innovation: self.innovation,
+                outlier: self.outlier,
+                outliers: self.outliers,
+            },
+            checks: CheckReport {
+                off_envelope: self.worst_off,
+                consistency,
+                rate_ratio: self.kinematics.ratio(),
+                swing: swing.unwrap_or(f32::NAN),
+                unevenness,
+            },
         }
     }
 

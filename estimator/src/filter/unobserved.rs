@@ -58,7 +58,7 @@ impl Estimator<'_> {
     /// let before = est.step(&[0.29, -0.1])?;
     /// let after = est.skip(5)?;
     /// assert_eq!(after.t, before.t + 5);
-    /// assert!(after.coordinate_std[0] >= before.coordinate_std[0]); // nothing learned
+    /// assert!(after.filter.coordinate_std[0] >= before.filter.coordinate_std[0]); // nothing learned
     /// # Ok::<(), estimator::Error>(())
     /// ```
     pub fn predict(&mut self) -> Result<StepOutput, Error> {

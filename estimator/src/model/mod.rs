@@ -412,7 +412,7 @@ impl<'a> Model<'a> {
 
     internal! {
         /// [`Model::simulate`] from the parameters' filter coordinates `q`
-        /// ([`crate::StepOutput::coordinate`]).
+        /// ([`crate::FilterReport::coordinate`]).
         pub fn simulate_coordinates(
             &self,
             x0: &State,

@@ -111,18 +111,18 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
         for x in states_f32(&r.xs).iter().take(WINDOW) {
             let o = est.step(x)?;
             length_trace.push(o.params[0]);
-            corrections.push(o.correction[0]);
+            corrections.push(o.filter.correction[0]);
             last = Some(o);
         }
         let last = last.context("empty rollout")?;
-        let mse_klm = simulation_mse(model, &r.xs, last.coordinate)?;
+        let mse_klm = simulation_mse(model, &r.xs, last.filter.coordinate)?;
         out.push(RolloutScore {
             rollout: r.id,
             length: m.length,
             mse_true,
             length_est: last.params[0],
             length_std: last.param_std[0],
-            sigma: last.sigma[0],
+            sigma: last.filter.sigma[0],
             trusted: last.trust.is_trusted(),
             mse_klm,
             length_trace,

@@ -79,7 +79,7 @@ pub fn window_sigma(model: &Model<'_>, xs: &[[f64; 2]]) -> Result<f32> {
         &mut Estimator::new(model).at_trained_gravity(),
         &states_f32(&xs[..n]),
     )?;
-    Ok(out.sigma[0])
+    Ok(out.filter.sigma[0])
 }
 
 /// Exports KLM run `dir` to the blob `out`, with a gain schedule over the

@@ -179,16 +179,17 @@ pub(super) fn checkpoints_with_extremes(
         if n + 1 == WINDOW {
             at_window = Some(out.clone());
         }
-        if let (Some(v), Some(mean)) = (out.innovation, mean_before.filter(|m| *m > 0.0)) {
+        if let (Some(v), Some(mean)) = (out.filter.innovation, mean_before.filter(|m| *m > 0.0)) {
             ext.step_ratio = most(ext.step_ratio, Some(v / mean));
         }
-        mean_before = out.nis;
+        mean_before = out.filter.nis;
         if n + 1 >= WINDOW {
             // The length at the blob's gravity, as the device reads it.
-            if let Some(v) = out.nis {
-                ext.nis.push([v, length.read(out.coordinate[0]), out.swing]);
+            if let Some(v) = out.filter.nis {
+                ext.nis
+                    .push([v, length.read(out.filter.coordinate[0]), out.checks.swing]);
             }
-            ext.rate_off = most(ext.rate_off, out.rate_ratio.map(|r| (r - 1.0).abs()));
+            ext.rate_off = most(ext.rate_off, out.checks.rate_ratio.map(|r| (r - 1.0).abs()));
         }
         last = Some(out);
     }

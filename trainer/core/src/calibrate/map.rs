@@ -49,7 +49,7 @@ pub(super) fn map(setup: &Setup<'_, '_>, progress: &mut Progress<'_>) -> Result<
         let mut est = Estimator::new(&m).at_trained_gravity();
         let mut seen = Vec::with_capacity(r.xs.len());
         for (n, x) in r.xs.iter().enumerate() {
-            let q = est.step(x)?.coordinate[0];
+            let q = est.step(x)?.filter.coordinate[0];
             let cell = env.cell(&m.normalise(x));
             seen.push(cell);
             if n >= burn_in {

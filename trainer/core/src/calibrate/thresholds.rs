@@ -132,7 +132,10 @@ fn smallest_trusted_swing(m: &Model<'_>, cal: &[Held], cfg: &CalibrateConfig) ->
     let mut swings = Vec::with_capacity(cal.len());
     for r in cal {
         let (a, _) = checkpoints(m, r.xs.get(..WINDOW).unwrap_or(&r.xs))?;
-        swings.push((f64::from(a.swing), !right(&a, r.length, cfg.accurate)));
+        swings.push((
+            f64::from(a.checks.swing),
+            !right(&a, r.length, cfg.accurate),
+        ));
     }
     Ok(min_swing(&mut swings, cfg.swing_share) as f32)
 }
@@ -180,22 +183,28 @@ impl Readings {
             let truth = spec.coordinate(h.length as f32);
             if let (true, Some(c)) = (effect_spec.declared, h.effect) {
                 let t = effect_spec.coordinate(c as f32);
-                r.effect_long.push(f64::from((b.coordinate[1] - t).abs()));
+                r.effect_long
+                    .push(f64::from((b.filter.coordinate[1] - t).abs()));
                 r.effect_window.push((
-                    f64::from((a.coordinate[1] - t).abs()),
-                    f64::from(a.coordinate_std[1]),
+                    f64::from((a.filter.coordinate[1] - t).abs()),
+                    f64::from(a.filter.coordinate_std[1]),
                 ));
             }
-            r.off.push(f64::from(a.off_envelope.max(b.off_envelope)));
-            r.uneven.push(f64::from(b.unevenness.unwrap_or(0.0)));
+            r.off
+                .push(f64::from(a.checks.off_envelope.max(b.checks.off_envelope)));
+            r.uneven.push(f64::from(b.checks.unevenness.unwrap_or(0.0)));
             r.traces.push(ext.nis);
             r.rate.push(f64::from(ext.rate_off.unwrap_or(0.0)));
             r.step_ratio.push(f64::from(ext.step_ratio.unwrap_or(0.0)));
-            r.qs.extend([f64::from(a.coordinate[0]), f64::from(b.coordinate[0])]);
-            r.err_long.push(f64::from((b.coordinate[0] - truth).abs()));
+            r.qs.extend([
+                f64::from(a.filter.coordinate[0]),
+                f64::from(b.filter.coordinate[0]),
+            ]);
+            r.err_long
+                .push(f64::from((b.filter.coordinate[0] - truth).abs()));
             r.err_window.push((
-                f64::from((a.coordinate[0] - truth).abs()),
-                f64::from(a.coordinate_std[0]),
+                f64::from((a.filter.coordinate[0] - truth).abs()),
+                f64::from(a.filter.coordinate_std[0]),
             ));
             progress.tick();
         }

@@ -151,7 +151,7 @@ impl At {
             measured,
             length: out.params[0],
             std: out.param_std[0],
-            model_length: est.model_params(&out.coordinate)[0],
+            model_length: est.model_params(&out.filter.coordinate)[0],
             effect: out.params[1],
             trust: out.trust.clone(),
             reasons: out
@@ -160,15 +160,15 @@ impl At {
                 .iter()
                 .map(|r| r.as_str().into())
                 .collect(),
-            nis: out.nis,
-            rate_ratio: out.rate_ratio,
-            consistency: out.consistency,
+            nis: out.filter.nis,
+            rate_ratio: out.checks.rate_ratio,
+            consistency: out.checks.consistency,
             held: out.held,
-            q_factor: out.q_factor,
-            q_factor_std: out.q_factor_std,
-            q_swing: out.q_swing,
-            period_length: out.period_length,
-            period_length_std: out.period_length_std,
+            q_factor: out.readers.q_factor,
+            q_factor_std: out.readers.q_factor_std,
+            q_swing: out.readers.q_swing,
+            period_length: out.readers.period_length,
+            period_length_std: out.readers.period_length_std,
         }
     }
 

@@ -183,7 +183,7 @@ impl<'t> Panels<'t> {
             .steps
             .iter()
             .filter_map(|(t, o)| {
-                let (q, std) = (o.q_factor?, o.q_factor_std?);
+                let (q, std) = (o.readers.q_factor?, o.readers.q_factor_std?);
                 Some((*t, f64::from(q), 2.0 * f64::from(std), true))
             })
             .collect();
@@ -326,35 +326,41 @@ pub fn estimate(path: &Path, trace: &Trace<'_>) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use estimator::{Reason, Reasons};
+    use estimator::{CheckReport, FilterReport, Readers, Reason, Reasons};
 
     fn out(trust: Trust) -> StepOutput {
         StepOutput {
             t: 0,
             params: [1.0, 0.0],
             param_std: [0.1, 0.0],
-            coordinate: [1.0, 0.0],
-            coordinate_std: [0.1, 0.0],
-            correction: [0.0; 2],
-            sigma: [0.0; 2],
             trust,
-            off_envelope: 0,
-            nis: None,
-            consistency: None,
-            rate_ratio: None,
-            swing: 0.5,
-            unevenness: None,
             held: false,
-            offset: None,
-            offset_std: None,
-            innovation: None,
-            outlier: false,
-            outliers: 0,
-            q_factor: None,
-            q_factor_std: None,
-            q_swing: None,
-            period_length: None,
-            period_length_std: None,
+            readers: Readers {
+                offset: None,
+                offset_std: None,
+                q_factor: None,
+                q_factor_std: None,
+                q_swing: None,
+                period_length: None,
+                period_length_std: None,
+            },
+            filter: FilterReport {
+                coordinate: [1.0, 0.0],
+                coordinate_std: [0.1, 0.0],
+                correction: [0.0; 2],
+                sigma: [0.0; 2],
+                nis: None,
+                innovation: None,
+                outlier: false,
+                outliers: 0,
+            },
+            checks: CheckReport {
+                off_envelope: 0,
+                consistency: None,
+                rate_ratio: None,
+                swing: 0.5,
+                unevenness: None,
+            },
         }
     }
 

@@ -91,7 +91,7 @@ impl Run {
         let out = est.step(&[x[0] as f32, x[1] as f32]).map_err(fail)?;
         measured += 1;
         self.last = Some(t);
-        let model = est.model_params(&out.coordinate);
+        let model = est.model_params(&out.filter.coordinate);
         Ok(self.tracked.insert(Tracked {
             out,
             measured,

@@ -73,7 +73,11 @@ pub fn held_out(model: &Model<'_>, part: &Part, dt: f64) -> Result<BlobRead> {
         second: spec.map_or("none", |s| s.name).to_string(),
         second_unit: unit_of(spec.map_or("none", |s| s.name)).to_string(),
         second_value: declared.then_some([o.params[1], o.param_std[1]]),
-        q_factor: o.q_factor.zip(o.q_factor_std).map(|(q, s)| [q, s]),
+        q_factor: o
+            .readers
+            .q_factor
+            .zip(o.readers.q_factor_std)
+            .map(|(q, s)| [q, s]),
         verdict: o.trust.as_str().to_string(),
         reasons: o.trust.reasons().iter().map(|r| r.to_string()).collect(),
     })
