@@ -366,7 +366,12 @@ fn filter(
             .str(mode)
             .str(" ");
         line.uint(u64::from(out.t)).str(" ");
-        for v in out.params.iter().chain(&out.param_std).chain(&out.filter.sigma) {
+        for v in out
+            .params
+            .iter()
+            .chain(&out.param_std)
+            .chain(&out.filter.sigma)
+        {
             line.hex(*v);
         }
         // The quality factor and its std, NaN where there is none yet.
@@ -388,7 +393,8 @@ fn filter(
         line.str(" length=").dec(p[0]);
         line.str(" std=").dec(out.param_std[0]);
         line.str(" sigma=").dec(out.filter.sigma[0]);
-        line.str(" q=").dec(out.readers.q_factor.unwrap_or(f32::NAN));
+        line.str(" q=")
+            .dec(out.readers.q_factor.unwrap_or(f32::NAN));
         line.str(" trust=").str(out.trust.as_str()).str(" ");
         reasons(line, &out.trust);
         line.str(" window_steps=").uint(window_steps);
