@@ -1,6 +1,9 @@
 //! The layout's rule, checked: no import cycle among the top-level modules
-//! of `trainer` and of `trainer-core` (data walks one way, see
-//! `docs/architecture.md`). `cargo test -p trainer --test layout` runs it.
+//! of `trainer`, of `trainer-core` and of `estimator`, whose layers
+//! `kalman` (the filter alone), `swing` (the swing's readers) and `trust`
+//! (the verdict) import neither each other nor the step that joins them
+//! (data walks one way, see `docs/architecture.md`).
+//! `cargo test -p trainer --test layout` runs it.
 //!
 //! A module `a` uses `b` when a source file under `a` names `crate::b`
 //! (in a path or in a `use crate::{b, ...}` group). The check reads the
@@ -143,6 +146,22 @@ fn no_import_cycle_in_the_core() {
     let g = check(&Path::new(env!("CARGO_MANIFEST_DIR")).join("core/src"));
     assert!(g["diagnose"].contains("physics"));
     assert!(!g["physics"].contains("diagnose"));
+}
+
+#[test]
+fn no_import_cycle_in_the_estimator_and_its_layers_import_one_way() {
+    let g = check(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../estimator/src"));
+    for (layer, banned) in [
+        ("kalman", ["swing", "filter", "trust"]),
+        ("swing", ["kalman", "filter", "trust"]),
+        ("trust", ["kalman", "swing", "filter"]),
+    ] {
+        let uses = &g[layer];
+        for b in banned {
+            assert!(!uses.contains(b), "{layer} imports {b}: {uses:?}");
+        }
+    }
+    assert!(g["filter"].contains("kalman") && g["filter"].contains("swing"));
 }
 
 #[test]
