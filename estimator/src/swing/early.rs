@@ -82,9 +82,8 @@ pub(crate) struct Early {
     n: u16,
     sum_d: f32,
     sum_c: f32,
-    /// The smallest and the largest amplitude among them, rad.
+    /// The smallest amplitude among them, rad.
     least: f32,
-    most: f32,
     /// The period gives its own reading: nothing more is kept.
     done: bool,
     /// A turning point was found.
@@ -104,7 +103,6 @@ impl Default for Early {
             sum_d: 0.0,
             sum_c: 0.0,
             least: f32::INFINITY,
-            most: 0.0,
             done: false,
             turned: false,
             own: false,
@@ -190,7 +188,6 @@ impl Early {
                 self.sum_d += d;
                 self.sum_c += c_a;
                 self.least = self.least.min(a);
-                self.most = self.most.max(a);
             }
         }
         // The last half swing's angles become the older ones.
@@ -283,25 +280,16 @@ impl Early {
 
     /// `w0^2` (1/s^2) from the half swings read and its relative standard
     /// deviation: the noise of the first middle and the last over the
-    /// half swings' number (their durations add up between them), and
-    /// the damping's shift of the frequency timed, `zeta^2` (`w_d^2 =
-    /// w0^2 (1 - zeta^2)`), `zeta` read from the amplitudes' decay: at most
-    /// `exp(-pi zeta)` a half swing, so `zeta <= ln(most / least) / (pi (n -
-    /// 1))` (noise in the amplitudes makes it larger: a bound).
+    /// half swings' number (their durations add up between them).
     pub(crate) fn reading(&self) -> Option<(f32, f32)> {
         if self.done || self.n == 0 || self.sum_d <= 0.0 {
             return None;
         }
         let w = core::f32::consts::PI * self.sum_c / self.sum_d;
-        let n = f32::from(self.n);
-        let timing = relative(CROSSING_NOISE / (self.least * n));
-        let zeta = if self.n > 1 && self.least > 0.0 {
-            libm::logf(self.most / self.least) / (core::f32::consts::PI * (n - 1.0))
-        } else {
-            0.0
-        };
-        let damping = zeta * zeta;
-        Some((w * w, libm::sqrtf(timing * timing + damping * damping)))
+        Some((
+            w * w,
+            relative(CROSSING_NOISE / (self.least * f32::from(self.n))),
+        ))
     }
 }
 
