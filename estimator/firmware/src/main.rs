@@ -181,11 +181,11 @@ fn reasons(line: &mut Line, t: &Trust) {
 const PAINT: usize = 64 * 1024;
 const PAINT_WORD: u32 = 0xdead_beef;
 
-/// Fills the `PAINT` bytes below the current stack pointer with a pattern.
+/// Fills `bytes` below the current stack pointer with a pattern.
 #[inline(never)]
-fn paint_stack() -> usize {
+fn paint_stack(bytes: usize) -> usize {
     let sp = cortex_m::register::msp::read() as usize - 256;
-    let bottom = sp - PAINT;
+    let bottom = sp - bytes;
     let mut a = bottom;
     while a < sp {
         // SAFETY: RAM below the stack pointer, unused so far (the stack
@@ -196,9 +196,9 @@ fn paint_stack() -> usize {
     sp
 }
 
-/// Stack bytes used below `top` since [`paint_stack`].
-fn stack_used(top: usize) -> usize {
-    let bottom = top - PAINT;
+/// Stack bytes used below `top` since [`paint_stack`] painted `bytes`.
+fn stack_used(top: usize, bytes: usize) -> usize {
+    let bottom = top - bytes;
     let mut a = bottom;
     // SAFETY: the same painted RAM, read back.
     while a < top && unsafe { core::ptr::read_volatile(a as *const u32) } == PAINT_WORD {
@@ -207,20 +207,23 @@ fn stack_used(top: usize) -> usize {
     top - a
 }
 
+/// Bytes painted below the caller of each step: more than a step uses.
+const STEP_PAINT: usize = 24 * 1024;
+
 #[entry]
 fn main() -> ! {
-    let top = paint_stack();
+    let top = paint_stack(PAINT);
     let mut line = Line::new();
     let mut ok = run(&mut line);
     line.str("stack used=")
-        .uint(stack_used(top) as u64)
+        .uint(stack_used(top, PAINT) as u64)
         .str(" (high-water below main: model, estimator, step)")
         .send();
     if ok {
-        let top = paint_stack();
+        let top = paint_stack(PAINT);
         ok = run_rig(&mut line);
         line.str("rig stack used=")
-            .uint(stack_used(top) as u64)
+            .uint(stack_used(top, PAINT) as u64)
             .str(" (the same for the rig blob)")
             .send();
     }
@@ -340,10 +343,14 @@ fn filter(
     let (mut window_ticks, mut window_steps) = (0u64, 0u64);
     let (mut after_ticks, mut after_steps) = (0u64, 0u64);
     let mut last = None;
+    // The most stack one step used, below this frame.
+    let mut step_stack = 0usize;
     for x in xs {
+        let top = paint_stack(STEP_PAINT);
         let before = SYST::get_current();
         let out = est.step(x);
         let after = SYST::get_current();
+        step_stack = step_stack.max(stack_used(top, STEP_PAINT));
         let out = match out {
             Ok(o) => o,
             Err(e) => {
@@ -403,6 +410,7 @@ fn filter(
         line.str(" after_ticks=").uint(after_ticks);
         line.str(" encode_ticks=")
             .uint(u64::from(ticks(before, after)));
+        line.str(" step_stack=").uint(step_stack as u64);
         line.send();
     }
     true

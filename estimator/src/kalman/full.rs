@@ -7,7 +7,7 @@ use super::kernels::{
     unit_lower_inverse, upper_rows,
 };
 use crate::blob::{Family, FilterSpec};
-use crate::model::KoopmanColumns;
+use crate::model::{KoopmanColumns, Model};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
 
 /// The prior `P`: `diag(prior_var)`.
@@ -27,14 +27,15 @@ impl Kalman<'_> {
     /// measurements, so any `z` will do): for a filter that has updated on
     /// the schedule, which keeps the gains and not `P`.
     pub(crate) fn replayed_covariance(&self) -> Result<Cov, Error> {
-        let mut replay = self.clone();
-        replay.p = prior_covariance(&self.model.blob().body.filter);
+        let mut p = prior_covariance(&self.model.blob().body.filter);
+        let mut next = p;
+        let mut mean = self.mean;
         let z = [0.0f32; LATENT_DIM];
         for _ in 0..self.t {
-            let (_, p) = replay.predict_update(&z, &mut 0.0)?;
-            replay.p = p;
+            mean = predict_update(self.model, &mean, &p, &mut next, &z, &mut 0.0)?;
+            p = next;
         }
-        Ok(replay.p)
+        Ok(p)
     }
 
     /// A prediction without an update, leaving `self` alone: `g = F g`
@@ -77,7 +78,8 @@ impl Kalman<'_> {
         for (mi, yi) in m.iter_mut().zip(&y) {
             *mi = *yi;
         }
-        let n = latent_rows_of_fp(ct, p);
+        let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
+        latent_rows_of_fp(ct, p, &mut n);
         let mut pyy = upper_of_nct(&n, ct);
         mirror_upper(&mut pyy);
         let mut out = *p;
@@ -120,235 +122,251 @@ impl Kalman<'_> {
             Err(Error::FilterNotPositiveDefinite)
         }
     }
+}
 
-    /// Predict and update without touching `self`, using the structure:
-    /// `F = [C; 0 I]` with `C = [A B]` the latent rows, `H = [I 0]` a
-    /// selection, `P` symmetric, `R` diagonal. Every product is written as
-    /// rows accumulated from scaled rows ([`combo`]), which a vector unit
-    /// runs lane-parallel and which keeps each sum in a fixed order.
-    ///
-    /// The bilinear family runs the same recursion as an extended filter:
-    /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
-    /// mean ([`crate::Model::bilinear_step`]).
-    pub(crate) fn predict_update(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
-        if self.model.family() == Family::Bilinear {
-            return self.predict_update_bilinear(z, nis);
-        }
-        let (y, nu) = self.predict_latent(z);
-        self.predict_update_with(z, self.model.koopman_columns(), y, nu, nis)
+/// Predict and update from `p` into `out`, returning the new mean, using
+/// the structure: `F = [C; 0 I]` with `C = [A B]` the latent rows,
+/// `H = [I 0]` a selection, `P` symmetric, `R` diagonal. Every product is
+/// written as rows accumulated from scaled rows ([`combo`]), which a vector
+/// unit runs lane-parallel and which keeps each sum in a fixed order.
+///
+/// The bilinear family runs the same recursion as an extended filter:
+/// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
+/// mean ([`crate::Model::bilinear_step`]). `out` is written whatever the
+/// result; the caller keeps `p` until it takes the update.
+pub(crate) fn predict_update(
+    model: &Model<'_>,
+    mean: &Aug,
+    p: &Cov,
+    out: &mut Cov,
+    z: &Latent,
+    nis: &mut f32,
+) -> Result<Aug, Error> {
+    if model.family() == Family::Bilinear {
+        return predict_update_bilinear(model, mean, p, out, z, nis);
+    }
+    let ct = model.koopman_columns();
+    let y = combo(mean.iter().copied().zip(ct));
+    predict_update_with(model, mean, p, out, z, ct, &y, nis)
+}
+
+/// [`predict_update`] of the bilinear family: its Jacobian's columns live
+/// in this frame only (the linear path's stack stays as it was).
+#[inline(never)]
+fn predict_update_bilinear(
+    model: &Model<'_>,
+    mean: &Aug,
+    p: &Cov,
+    out: &mut Cov,
+    z: &Latent,
+    nis: &mut f32,
+) -> Result<Aug, Error> {
+    let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
+    let y = model
+        .bilinear_step_into(mean, &mut ct)
+        .ok_or(Error::BlobShapeMismatch)?;
+    predict_update_with(model, mean, p, out, z, &ct, &y, nis)
+}
+
+/// [`predict_update`] with the latent rows of the transition by columns
+/// (`ct` = `C^T`) and the predicted latent `y`; writes the normalised
+/// innovation squared `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for
+/// both families' callers, not one each.)
+///
+/// Its buffers: `out` holds `N = C P` until `P` is written over it; one
+/// square holds `S` (upper triangle) and its factor `L` (below), and one
+/// holds `X = L^-1`, then `S^-1` in its place.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn predict_update_with(
+    model: &Model<'_>,
+    mean: &Aug,
+    p: &Cov,
+    out: &mut Cov,
+    z: &Latent,
+    ct: &KoopmanColumns,
+    y: &Latent,
+    nis: &mut f32,
+) -> Result<Aug, Error> {
+    let spec = &model.blob().body.filter;
+
+    // Predict the mean: y' = C g (or F(q) y);  p' = p.
+    let mut m = *mean;
+    let mut nu = *z;
+    for ((mi, v), yi) in m.iter_mut().zip(nu.iter_mut()).zip(y) {
+        *mi = *yi;
+        *v -= yi;
     }
 
-    /// [`Kalman::predict_update`] of the bilinear family: its
-    /// Jacobian's columns live in this frame only (the linear path's stack
-    /// stays as it was).
-    #[inline(never)]
-    fn predict_update_bilinear(&self, z: &Latent, nis: &mut f32) -> Result<(Aug, Cov), Error> {
-        let (y, ct) = self
-            .model
-            .bilinear_step(&self.mean)
-            .ok_or(Error::BlobShapeMismatch)?;
-        let mut nu = *z;
-        for (v, yi) in nu.iter_mut().zip(&y) {
-            *v -= yi;
+    // Predict the covariance: N = C P (the latent rows of F P, in `out`),
+    // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
+    // P'_pp = P_pp + Q_p.
+    let (n, _) = out
+        .split_first_chunk_mut::<LATENT_DIM>()
+        .ok_or(Error::BlobShapeMismatch)?;
+    latent_rows_of_fp(ct, p, n);
+    let mut s = upper_of_nct(n, ct);
+    let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
+    for (dst, ni) in pyp.iter_mut().zip(n.iter()) {
+        *dst = *tail(ni);
+    }
+    let mut ppp = [[0.0f32; PARAM_DIM]; PARAM_DIM];
+    for (a, (dst, prow)) in ppp.iter_mut().zip(p.iter().skip(LATENT_DIM)).enumerate() {
+        *dst = *tail(prow);
+        let q = spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+        if let Some(d) = dst.get_mut(a) {
+            *d += q;
         }
-        self.predict_update_with(z, &ct, y, nu, nis)
     }
 
-    /// [`Kalman::predict_update`] with the latent rows of the
-    /// transition by columns (`ct` = `C^T`), the predicted latent `y` and
-    /// the innovation `nu = z - y`; writes the normalised innovation
-    /// squared `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for both
-    /// families' callers, not one each.)
-    #[inline(never)]
-    fn predict_update_with(
-        &self,
-        z: &Latent,
-        ct: &KoopmanColumns,
-        y: Latent,
-        nu: Latent,
-        nis: &mut f32,
-    ) -> Result<(Aug, Cov), Error> {
-        let spec = &self.model.blob().body.filter;
-
-        // Predict the mean: y' = C g (or F(q) y);  p' = p.
-        let mut m = self.mean;
-        for (mi, yi) in m.iter_mut().zip(&y) {
-            *mi = *yi;
+    // S = H P' H^T + R = P'_yy + Q_y + R, factored as L D L^T (below the
+    // diagonal of `s`; S stays on and above it), and its inverse
+    // Si = X^T D^-1 X with X = L^-1.
+    for (i, srow) in s.iter_mut().enumerate() {
+        if let (Some(d), Some(q), Some(r)) = (srow.get_mut(i), spec.q.get(i), spec.r.get(i)) {
+            *d = (*d + q) + r;
         }
+    }
+    mirror_upper(&mut s);
+    let mut d_inv = [0.0f32; LATENT_DIM];
+    ldl(&mut s, &mut d_inv)?;
+    let mut si = unit_lower_inverse(&s);
+    inverse_from_ldl(&mut si, &d_inv);
+    // S whole again (its lower triangle from the upper): L is done with.
+    mirror_upper(&mut s);
 
-        // Predict the covariance: N = C P (the latent rows of F P), then
-        // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
-        // P'_pp = P_pp + Q_p.
-        let n = latent_rows_of_fp(ct, &self.p);
-        let mut pyy = upper_of_nct(&n, ct);
-        mirror_upper(&mut pyy);
-        let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
-        for (dst, ni) in pyp.iter_mut().zip(&n) {
-            *dst = *tail(ni);
+    // With the optimal gain K = P' H^T Si no K is formed:
+    // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
+    // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
+    let w = combo(nu.iter().copied().zip(&si));
+    // The normalised innovation squared, nu^T Si nu: how far the
+    // measurement lies from the prediction in the filter's own units.
+    *nis = dot(&nu, &w);
+    // M^T, row a = sum_k P'_yp[k][a] Si_k.
+    let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+    for (a, mta) in mt.iter_mut().enumerate() {
+        *mta = combo(
+            pyp.iter()
+                .map(|pk| pk.get(a).copied().unwrap_or(0.0))
+                .zip(&si),
+        );
+    }
+    for (((mi, zi), ri), wi) in m.iter_mut().zip(z).zip(&spec.r).zip(&w) {
+        *mi = zi - ri * wi;
+    }
+    for (mi, mta) in m.iter_mut().skip(LATENT_DIM).zip(&mt) {
+        *mi += dot(mta, &nu);
+    }
+
+    // Covariance by blocks. Joseph's form
+    // P = (I - K H) P' (I - K H)^T + K R K^T, with I - K H =
+    // [R Si, 0; -M^T, I], gives, using S M (T below):
+    //   P_yp = 2 R M - R Si S M,
+    //   P_pp = P'_pp - M^T P'_yp - P'_py M + M^T S M,
+    // which an error in Si (or M) changes only to second order: this
+    // keeps P positive definite when S is ill conditioned. For P_yy
+    // the standard form R - R Si R is kept (its Joseph form costs
+    // two more 16^3 products); it is exactly symmetric as Si is.
+    let mut tt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+    for (a, tta) in tt.iter_mut().enumerate() {
+        // T^T row a = sum_k M[k][a] S_k (S symmetric).
+        *tta = combo(
+            mt.get(a)
+                .into_iter()
+                .flat_map(|mta| mta.iter().copied().zip(&s)),
+        );
+    }
+    // (Si T)^T row a = sum_k T[k][a] Si_k.
+    let mut sit = [[0.0f32; LATENT_DIM]; PARAM_DIM];
+    for (sita, tta) in sit.iter_mut().zip(&tt) {
+        *sita = combo(tta.iter().copied().zip(&si));
+    }
+    // P over N: N is done with.
+    for (i, (prow, si_row)) in out.iter_mut().zip(&si).enumerate() {
+        let ri = spec.r.get(i).copied().unwrap_or(0.0);
+        for (pij, (sij, rj)) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)) {
+            *pij = -((ri * rj) * sij);
         }
-        let mut ppp = [[0.0f32; PARAM_DIM]; PARAM_DIM];
-        for (a, (dst, prow)) in ppp
-            .iter_mut()
-            .zip(self.p.iter().skip(LATENT_DIM))
+        if let Some(d) = prow.get_mut(i) {
+            *d += ri;
+        }
+        for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
+            let m = mta.get(i).copied().unwrap_or(0.0);
+            let st = sita.get(i).copied().unwrap_or(0.0);
+            *pij = ri * (2.0 * m - st);
+        }
+    }
+    for (a, (prow, ppa)) in out.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
+        let Some(mta) = mt.get(a) else {
+            continue;
+        };
+        for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
+            let (mut cross, mut quad) = (0.0f32, 0.0f32);
+            for (((pk, mka), mkb), tkb) in pyp
+                .iter()
+                .zip(mta)
+                .zip(mtb)
+                .zip(tt.get(b).into_iter().flatten())
+            {
+                let pka = pk.get(a).copied().unwrap_or(0.0);
+                let pkb = pk.get(b).copied().unwrap_or(0.0);
+                cross += mka * pkb + pka * mkb;
+                quad += mka * tkb;
+            }
+            *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
+        }
+    }
+    // P_yy is exactly symmetric already (R_i R_j Si_ij, Si mirrored);
+    // the p rows take the transposes of the p columns, and the lower
+    // triangle of P_pp its upper one.
+    let (top, bottom) = out.split_at_mut(LATENT_DIM);
+    for (a, prow) in bottom.iter_mut().enumerate() {
+        for (dst, row) in prow.iter_mut().zip(top.iter()) {
+            *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
+        }
+    }
+    for a in 1..PARAM_DIM {
+        for b in 0..a {
+            let upper = out
+                .get(LATENT_DIM + b)
+                .and_then(|r| r.get(LATENT_DIM + a))
+                .copied();
+            if let (Some(v), Some(d)) = (
+                upper,
+                out.get_mut(LATENT_DIM + a)
+                    .and_then(|r| r.get_mut(LATENT_DIM + b)),
+            ) {
+                *d = v;
+            }
+        }
+    }
+
+    // Is anything NaN or infinite?
+    let finite = out.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
+    if !finite {
+        return Err(Error::FilterNonFinite);
+    }
+    // A variance below zero: the extended filter linearised far from
+    // where its model holds (a measurement tens of R's deviations off
+    // pushed q out of the training range), and P is no covariance.
+    // (The linear family's filter is as it was.)
+    let variances_ok = model.family() == Family::Linear
+        || out
+            .iter()
             .enumerate()
-        {
-            *dst = *tail(prow);
-            let q = spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
-            if let Some(d) = dst.get_mut(a) {
-                *d += q;
-            }
-        }
-
-        // S = H P' H^T + R = P'_yy + Q_y + R, factored as L D L^T, and its
-        // inverse Si = X^T D^-1 X with X = L^-1.
-        let mut s = pyy;
-        for (i, srow) in s.iter_mut().enumerate() {
-            if let (Some(d), Some(q), Some(r)) = (srow.get_mut(i), spec.q.get(i), spec.r.get(i)) {
-                *d = (*d + q) + r;
-            }
-        }
-        let s_full = s;
-        let mut d_inv = [0.0f32; LATENT_DIM];
-        ldl(&mut s, &mut d_inv)?;
-        let x = unit_lower_inverse(&s);
-        let si = inverse_from_ldl(&x, &d_inv);
-
-        // With the optimal gain K = P' H^T Si no K is formed:
-        // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
-        // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
-        let w = combo(nu.iter().copied().zip(&si));
-        // The normalised innovation squared, nu^T Si nu: how far the
-        // measurement lies from the prediction in the filter's own units.
-        // (Written through `nis`: a third member of the returned tuple
-        // cost the Cortex-M4F 8,000 instructions a step and a kilobyte of
-        // stack, the covariance copied once more.)
-        *nis = dot(&nu, &w);
-        // M^T, row a = sum_k P'_yp[k][a] Si_k.
-        let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-        for (a, mta) in mt.iter_mut().enumerate() {
-            *mta = combo(
-                pyp.iter()
-                    .map(|pk| pk.get(a).copied().unwrap_or(0.0))
-                    .zip(&si),
-            );
-        }
-        for (((mi, zi), ri), wi) in m.iter_mut().zip(z).zip(&spec.r).zip(&w) {
-            *mi = zi - ri * wi;
-        }
-        for (mi, mta) in m.iter_mut().skip(LATENT_DIM).zip(&mt) {
-            *mi += dot(mta, &nu);
-        }
-
-        // Covariance by blocks. Joseph's form
-        // P = (I - K H) P' (I - K H)^T + K R K^T, with I - K H =
-        // [R Si, 0; -M^T, I], gives, using S M (T below):
-        //   P_yp = 2 R M - R Si S M,
-        //   P_pp = P'_pp - M^T P'_yp - P'_py M + M^T S M,
-        // which an error in Si (or M) changes only to second order: this
-        // keeps P positive definite when S is ill conditioned. For P_yy
-        // the standard form R - R Si R is kept (its Joseph form costs
-        // two more 16^3 products); it is exactly symmetric as Si is.
-        let mut tt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-        for (a, tta) in tt.iter_mut().enumerate() {
-            // T^T row a = sum_k M[k][a] S_k (S symmetric).
-            *tta = combo(
-                mt.get(a)
-                    .into_iter()
-                    .flat_map(|mta| mta.iter().copied().zip(&s_full)),
-            );
-        }
-        // (Si T)^T row a = sum_k T[k][a] Si_k.
-        let mut sit = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-        for (sita, tta) in sit.iter_mut().zip(&tt) {
-            *sita = combo(tta.iter().copied().zip(&si));
-        }
-        let mut p = [[0.0f32; AUG_DIM]; AUG_DIM];
-        for (i, (prow, si_row)) in p.iter_mut().zip(&si).enumerate() {
-            let ri = spec.r.get(i).copied().unwrap_or(0.0);
-            for (pij, (sij, rj)) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)) {
-                *pij = -((ri * rj) * sij);
-            }
-            if let Some(d) = prow.get_mut(i) {
-                *d += ri;
-            }
-            for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
-                let m = mta.get(i).copied().unwrap_or(0.0);
-                let st = sita.get(i).copied().unwrap_or(0.0);
-                *pij = ri * (2.0 * m - st);
-            }
-        }
-        for (a, (prow, ppa)) in p.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
-            let Some(mta) = mt.get(a) else {
-                continue;
-            };
-            for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
-                let (mut cross, mut quad) = (0.0f32, 0.0f32);
-                for (((pk, mka), mkb), tkb) in pyp
-                    .iter()
-                    .zip(mta)
-                    .zip(mtb)
-                    .zip(tt.get(b).into_iter().flatten())
-                {
-                    let pka = pk.get(a).copied().unwrap_or(0.0);
-                    let pkb = pk.get(b).copied().unwrap_or(0.0);
-                    cross += mka * pkb + pka * mkb;
-                    quad += mka * tkb;
-                }
-                *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
-            }
-        }
-        // P_yy is exactly symmetric already (R_i R_j Si_ij, Si mirrored);
-        // the p rows take the transposes of the p columns, and the lower
-        // triangle of P_pp its upper one.
-        let (top, bottom) = p.split_at_mut(LATENT_DIM);
-        for (a, prow) in bottom.iter_mut().enumerate() {
-            for (dst, row) in prow.iter_mut().zip(top.iter()) {
-                *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
-            }
-        }
-        for a in 1..PARAM_DIM {
-            for b in 0..a {
-                let upper = p
-                    .get(LATENT_DIM + b)
-                    .and_then(|r| r.get(LATENT_DIM + a))
-                    .copied();
-                if let (Some(v), Some(d)) = (
-                    upper,
-                    p.get_mut(LATENT_DIM + a)
-                        .and_then(|r| r.get_mut(LATENT_DIM + b)),
-                ) {
-                    *d = v;
-                }
-            }
-        }
-
-        // Is anything NaN or infinite?
-        let finite = p.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
-        if !finite {
-            return Err(Error::FilterNonFinite);
-        }
-        // A variance below zero: the extended filter linearised far from
-        // where its model holds (a measurement tens of R's deviations off
-        // pushed q out of the training range), and P is no covariance.
-        // (The linear family's filter is as it was.)
-        let variances_ok = self.model.family() == Family::Linear
-            || p.iter()
-                .enumerate()
-                .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
-        if variances_ok {
-            Ok((m, p))
-        } else {
-            Err(Error::FilterNotPositiveDefinite)
-        }
+            .all(|(i, r)| r.get(i).is_none_or(|v| *v >= 0.0));
+    if variances_ok {
+        Ok(m)
+    } else {
+        Err(Error::FilterNotPositiveDefinite)
     }
 }
 
-/// `N = C P`, the latent rows of `F P`, from `ct` = `C^T`: row `i` is the
-/// sum of `P`'s rows scaled by column `i` of `ct`, in the order of `k`
-/// ([`combo`]).
+/// `N = C P`, the latent rows of `F P`, from `ct` = `C^T`, into `n`: row
+/// `i` is the sum of `P`'s rows scaled by column `i` of `ct`, in the order
+/// of `k` ([`combo`]).
 #[inline(always)]
-fn latent_rows_of_fp(ct: &KoopmanColumns, p: &Cov) -> [[f32; AUG_DIM]; LATENT_DIM] {
-    let mut n = [[0.0f32; AUG_DIM]; LATENT_DIM];
+fn latent_rows_of_fp(ct: &KoopmanColumns, p: &Cov, n: &mut [[f32; AUG_DIM]; LATENT_DIM]) {
     for (i, ni) in n.iter_mut().enumerate() {
         *ni = combo(
             ct.iter()
@@ -356,7 +374,6 @@ fn latent_rows_of_fp(ct: &KoopmanColumns, p: &Cov) -> [[f32; AUG_DIM]; LATENT_DI
                 .zip(p),
         );
     }
-    n
 }
 
 /// The upper triangle of `N C^T` (`P'_yy` before `Q`): rows `4g..4g+3`

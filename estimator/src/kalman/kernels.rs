@@ -17,11 +17,12 @@ pub(crate) fn tail(r: &[f32; AUG_DIM]) -> &[f32; PARAM_DIM] {
     r.last_chunk::<PARAM_DIM>().unwrap_or(&[0.0; PARAM_DIM])
 }
 
-/// Whether every value is finite, in one pass without early exit (so it
-/// vectorises).
+/// Whether every value is finite, in one pass without early exit: the sum
+/// of `v * 0`, which is zero for finite values and NaN from an infinity
+/// or a NaN (one multiply-add a value).
 #[inline(always)]
 pub(crate) fn all_finite(r: &[f32]) -> bool {
-    r.iter().fold(true, |ok, v| ok & v.is_finite())
+    r.iter().fold(0.0f32, |acc, v| acc + v * 0.0) == 0.0
 }
 
 #[inline(always)]
@@ -112,9 +113,29 @@ pub(crate) fn ldl(s: &mut LatentSquare, d_inv: &mut Latent) -> Result<(), Error>
             *dd = dj;
             *di = inv;
         }
-        for row_i in below.iter_mut() {
+        let vj = v.get(..j).unwrap_or(&[]);
+        // Four rows at a time share each load of `v` (the sums are those of
+        // one row at a time, in the same order).
+        let (fours, rest) = below.as_chunks_mut::<4>();
+        for [r0, r1, r2, r3] in fours.iter_mut() {
+            let mut acc = [r0, &*r1, &*r2, &*r3].map(|r| r.get(j).copied().unwrap_or(0.0));
+            let rows = r0.iter().zip(r1.iter()).zip(r2.iter()).zip(r3.iter());
+            for ((((a, b), c), e), vk) in rows.zip(vj) {
+                let [s0, s1, s2, s3] = &mut acc;
+                *s0 -= a * vk;
+                *s1 -= b * vk;
+                *s2 -= c * vk;
+                *s3 -= e * vk;
+            }
+            for (row, acc) in [r0, r1, r2, r3].into_iter().zip(acc) {
+                if let Some(lij) = row.get_mut(j) {
+                    *lij = acc * inv;
+                }
+            }
+        }
+        for row_i in rest.iter_mut() {
             let mut acc = row_i.get(j).copied().unwrap_or(0.0);
-            for (lik, vk) in row_i.iter().zip(&v).take(j) {
+            for (lik, vk) in row_i.iter().zip(vj) {
                 acc -= lik * vk;
             }
             if let Some(lij) = row_i.get_mut(j) {
@@ -169,31 +190,26 @@ fn lower_rows<const W: usize>(x: &mut LatentSquare, l: &LatentSquare, from: usiz
     }
 }
 
-/// `S^-1 = X^T D^-1 X` from `X = L^-1` and `1 / D`: the sum over `k` of
-/// `d_k^-1 x_k x_k^T` (`x_k` row `k` of `X`, zero after its `k`-th
+/// `S^-1 = X^T D^-1 X` in place of `X = L^-1`, with `1 / D`: the sum over
+/// `k` of `d_k^-1 x_k x_k^T` (`x_k` row `k` of `X`, zero after its `k`-th
 /// entry). Rows `i <= k` take each term, rows `4g..4g+3` on their entries
 /// from `4g` on ([`upper_inverse_rows`]); the upper triangle is then
-/// mirrored, so the result is exactly symmetric.
-pub(crate) fn inverse_from_ldl(x: &LatentSquare, d_inv: &Latent) -> LatentSquare {
-    let mut si = [[0.0f32; LATENT_DIM]; LATENT_DIM];
-    upper_inverse_rows::<16>(&mut si, x, d_inv, 0);
-    upper_inverse_rows::<12>(&mut si, x, d_inv, 4);
-    upper_inverse_rows::<8>(&mut si, x, d_inv, 8);
-    upper_inverse_rows::<4>(&mut si, x, d_inv, 12);
-    mirror_upper(&mut si);
-    si
+/// mirrored, so the result is exactly symmetric. In place: row `i` of the
+/// inverse is written once its sum is done, and later rows read only rows
+/// `k > i` of `X`, whose entries after the `k`-th are still zero.
+pub(crate) fn inverse_from_ldl(x: &mut LatentSquare, d_inv: &Latent) {
+    upper_inverse_rows::<16>(x, d_inv, 0);
+    upper_inverse_rows::<12>(x, d_inv, 4);
+    upper_inverse_rows::<8>(x, d_inv, 8);
+    upper_inverse_rows::<4>(x, d_inv, 12);
+    mirror_upper(x);
 }
 
 /// Rows `from..from + 4` of [`inverse_from_ldl`] on their last `W`
 /// entries: `sum_{k >= i} (x_k[i] d_k^-1) x_k`, in the order of `k`.
 #[inline(always)]
-fn upper_inverse_rows<const W: usize>(
-    si: &mut LatentSquare,
-    x: &LatentSquare,
-    d_inv: &Latent,
-    from: usize,
-) {
-    for (i, row) in si.iter_mut().enumerate().skip(from).take(4) {
+fn upper_inverse_rows<const W: usize>(x: &mut LatentSquare, d_inv: &Latent, from: usize) {
+    for i in from..from + 4 {
         let mut acc = [0.0f32; W];
         for (xk, dk) in x.iter().zip(d_inv).skip(i) {
             let a = xk.get(i).copied().unwrap_or(0.0) * dk;
@@ -203,7 +219,7 @@ fn upper_inverse_rows<const W: usize>(
                 }
             }
         }
-        if let Some(dst) = row.last_chunk_mut::<W>() {
+        if let Some(dst) = x.get_mut(i).and_then(|row| row.last_chunk_mut::<W>()) {
             *dst = acc;
         }
     }

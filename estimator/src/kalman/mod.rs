@@ -86,8 +86,12 @@ pub(crate) struct Kalman<'m> {
     model: &'m Model<'m>,
     /// The mean `[y; p]`.
     pub(crate) mean: Aug,
-    /// `P` when the recursion runs here (without the schedule).
-    p: Cov,
+    /// `P` when the recursion runs here (without the schedule), and the
+    /// buffer its next update is written to: an update taken swaps which
+    /// is which ([`Kalman::p`]), so `P` is never copied.
+    ps: [Cov; 2],
+    /// Which of `ps` is `P`.
+    cur: usize,
     /// The two-stage form after the schedule: `V` and `P_b`.
     v: Sensitivity,
     pb: ParamSquare,
@@ -126,7 +130,8 @@ impl<'m> Kalman<'m> {
         Kalman {
             model,
             mean: [0.0; AUG_DIM],
-            p: [[0.0; AUG_DIM]; AUG_DIM],
+            ps: [[[0.0; AUG_DIM]; AUG_DIM]; 2],
+            cur: 0,
             v: [[0.0; LATENT_DIM]; PARAM_DIM],
             pb: [[0.0; PARAM_DIM]; PARAM_DIM],
             param_std: [0.0; PARAM_DIM],
@@ -146,7 +151,7 @@ impl<'m> Kalman<'m> {
         }
         let p = prior_covariance(spec);
         self.mean = m;
-        self.p = p;
+        *self.p_mut() = p;
         self.param_std = sqrt_diag(&p, LATENT_DIM);
         self.t = 0;
         self.started = true;
@@ -187,7 +192,9 @@ impl<'m> Kalman<'m> {
             }
             (None, _) => {
                 let mut n = 0.0;
-                let (m, new_p) = match self.predict_update(z, &mut n) {
+                let (model, mean) = (self.model, self.mean);
+                let (p, next) = self.buffers();
+                let m = match full::predict_update(model, &mean, p, next, z, &mut n) {
                     Err(Error::FilterNotPositiveDefinite) => {
                         return Ok(Updated::Refused(f32::INFINITY));
                     }
@@ -196,11 +203,10 @@ impl<'m> Kalman<'m> {
                 if gate.is_some_and(|g| n > g) {
                     return Ok(Updated::Refused(n));
                 }
-                // P only where the recursion runs here (it is 1296 bytes
-                // to copy), once the measurement is taken.
-                self.p = new_p;
+                // The new P, once the measurement is taken.
+                self.cur ^= 1;
                 nis = Some(n);
-                (m, sqrt_diag(&self.p, LATENT_DIM))
+                (m, sqrt_diag(self.p(), LATENT_DIM))
             }
         };
         let mut correction = [0.0; PARAM_DIM];
@@ -229,7 +235,7 @@ impl<'m> Kalman<'m> {
         let p = self.current_covariance()?;
         let (m, p) = self.predict_only(&p)?;
         self.mean = m;
-        self.p = p;
+        *self.p_mut() = p;
         self.param_std = sqrt_diag(&p, LATENT_DIM);
         self.bridged = true;
         self.t = self.t.saturating_add(1);
@@ -268,9 +274,27 @@ impl<'m> Kalman<'m> {
             }
             p
         };
-        self.p = p;
+        *self.p_mut() = p;
         self.bridged = true;
         true
+    }
+
+    /// `P` where the recursion runs here.
+    fn p(&self) -> &Cov {
+        let [a, b] = &self.ps;
+        if self.cur == 0 { a } else { b }
+    }
+
+    /// `P`, to be set.
+    fn p_mut(&mut self) -> &mut Cov {
+        let [a, b] = &mut self.ps;
+        if self.cur == 0 { a } else { b }
+    }
+
+    /// `P` and the buffer its next update goes to.
+    fn buffers(&mut self) -> (&Cov, &mut Cov) {
+        let [a, b] = &mut self.ps;
+        if self.cur == 0 { (a, b) } else { (b, a) }
     }
 
     /// Whether the next update applies a precomputed gain.
@@ -296,7 +320,7 @@ impl<'m> Kalman<'m> {
             Some(tail) if self.uses_schedule() && self.started && self.t >= 1 => {
                 (self.t >= t_end).then(|| self.assembled(tail))
             }
-            _ => Some(AugMatrix::from_data(ArrayStorage(self.p))),
+            _ => Some(AugMatrix::from_data(ArrayStorage(*self.p()))),
         }
     }
 
@@ -307,7 +331,7 @@ impl<'m> Kalman<'m> {
                 Ok(self.assembled(tail).data.0)
             }
             Some(_) if self.uses_schedule() => self.replayed_covariance(),
-            _ => Ok(self.p),
+            _ => Ok(*self.p()),
         }
     }
 

@@ -77,7 +77,15 @@ impl<'a, const I: usize, const H: usize, const O: usize> Mlp<'a, I, H, O> {
 fn activate(v: f32, act: Option<Activation>) -> f32 {
     match act {
         None => v,
-        Some(Activation::Relu) => v.max(0.0),
+        // A comparison, not `f32::max` (a library call on the Cortex-M4F);
+        // NaN goes to 0 as with `max`.
+        Some(Activation::Relu) => {
+            if v > 0.0 {
+                v
+            } else {
+                0.0
+            }
+        }
         Some(Activation::Tanh) => libm::tanhf(v),
     }
 }

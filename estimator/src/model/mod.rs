@@ -208,33 +208,51 @@ impl<'a> Model<'a> {
         /// F_2 y]`, by columns (entry `[j][i]` is `d y'_i / d g_j`: the filter
         /// sums along columns). `None` for a linear model (whose columns are
         /// [`Model::koopman_columns`], the same at every `g`).
-        #[inline(never)]
         pub fn bilinear_step(&self, m: &Aug) -> Option<(Latent, KoopmanColumns)> {
+            let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
+            let next = self.bilinear_step_into(m, &mut jac)?;
+            Some((next, jac))
+        }
+    }
+
+    internal! {
+        /// [`Model::bilinear_step`] with the Jacobian's columns written into
+        /// `jac` (every entry), the caller's buffer: the filter's step
+        /// neither zeroes nor copies them. On `None`, `jac` is partly
+        /// written.
+        #[inline(never)]
+        pub fn bilinear_step_into(&self, m: &Aug, jac: &mut KoopmanColumns) -> Option<Latent> {
             let [f0, f1, f2, f11] = self.bilinear?;
             let (y, q) = m.split_first_chunk::<LATENT_DIM>()?;
             let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
             let q11 = q1 * q1;
             let mut next = [0.0f32; LATENT_DIM];
-            let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
-            let dot = |row: &[f32; LATENT_DIM]| row.iter().zip(y).fold(0.0f32, |a, (w, v)| a + w * v);
-            for (i, n) in next.iter_mut().enumerate() {
-                let (r0, r1, r2, r11) = (f0.get(i)?, f1.get(i)?, f2.get(i)?, f11.get(i)?);
-                let (u0, u1, u2, u11) = (dot(r0), dot(r1), dot(r2), dot(r11));
+            let (latent, q_cols) = jac.split_first_chunk_mut::<LATENT_DIM>()?;
+            let [dq1, dq2] = q_cols.first_chunk_mut::<PARAM_DIM>()?;
+            for (i, ((((n, r0), r1), r2), r11)) in next.iter_mut().zip(f0).zip(f1).zip(f2).zip(f11).enumerate() {
+                // The four sums side by side, each in the order of `k`.
+                let (mut u0, mut u1, mut u2, mut u11) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+                for ((((a, b), c), e), v) in r0.iter().zip(r1).zip(r2).zip(r11).zip(y) {
+                    u0 += a * v;
+                    u1 += b * v;
+                    u2 += c * v;
+                    u11 += e * v;
+                }
                 *n = ((u0 + q1 * u1) + q2 * u2) + q11 * u11;
-                for (col, (((a, b), c), e)) in jac.iter_mut().zip(r0.iter().zip(r1).zip(r2).zip(r11)) {
-                    if let Some(d) = col.get_mut(i) {
+                if let (Some(d1), Some(d2)) = (dq1.get_mut(i), dq2.get_mut(i)) {
+                    *d1 = u1 + 2.0 * q1 * u11;
+                    *d2 = u2;
+                }
+            }
+            // The latent columns, one at a time: column `j` of `F(q)`.
+            for (j, col) in latent.iter_mut().enumerate() {
+                for ((((d, r0), r1), r2), r11) in col.iter_mut().zip(f0).zip(f1).zip(f2).zip(f11) {
+                    if let (Some(a), Some(b), Some(c), Some(e)) = (r0.get(j), r1.get(j), r2.get(j), r11.get(j)) {
                         *d = ((a + q1 * b) + q2 * c) + q11 * e;
                     }
                 }
-                let (dq1, dq2) = (u1 + 2.0 * q1 * u11, u2);
-                if let Some(d) = jac.get_mut(LATENT_DIM).and_then(|c| c.get_mut(i)) {
-                    *d = dq1;
-                }
-                if let Some(d) = jac.get_mut(LATENT_DIM + 1).and_then(|c| c.get_mut(i)) {
-                    *d = dq2;
-                }
             }
-            Some((next, jac))
+            Some(next)
         }
     }
 
