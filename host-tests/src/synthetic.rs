@@ -129,10 +129,11 @@ pub fn bilinear_matrices() -> [DMatrix<f64>; BILINEAR_BLOCKS] {
 }
 
 /// The arena: encoder and decoder layers (weight then bias, in
-/// [`Layout::layer_span`]'s order), then `F_0, F_1, F_2, F_11` row-major.
+/// [`Layout::layer_span`]'s order), then `F_0, F_1, F_2, F_11` row-major,
+/// then the torque's columns `B_0, B_1, B_2, B_11` ([`bilinear_b`]).
 fn arena() -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(BILINEAR_SEED);
-    let mut arena = vec![0.0f32; LAYOUT.bilinear_arena_len()];
+    let mut arena = vec![0.0f32; LAYOUT.bilinear_arena_len(true)];
     for net in [Net::Encoder, Net::Decoder] {
         for k in 0..N_LAYERS {
             let Some((at, d_in, d_out)) = LAYOUT.layer_span(net, k) else {
@@ -155,7 +156,22 @@ fn arena() -> Vec<f32> {
             }
         }
     }
+    for (k, b) in bilinear_b().iter().enumerate() {
+        let at = LAYOUT.bilinear_b_at() + k * LATENT_DIM;
+        arena[at..at + LATENT_DIM].copy_from_slice(b);
+    }
     arena
+}
+
+/// The synthetic blob's torque columns `B_0, B_1, B_2, B_11`: a torque
+/// pushes the latent along a fixed direction, more at one end of the
+/// length's range (`B_1`), a little with the damping (`B_2`), curved
+/// (`B_11`). Exact multiples of 1/64, from a formula (no RNG).
+pub fn bilinear_b() -> [[f32; LATENT_DIM]; 4] {
+    let scale = [0.125f32, 0.0625, 0.015625, 0.03125];
+    core::array::from_fn(|k| {
+        core::array::from_fn(|i| scale[k] * ((i * (k + 3)) % 5) as f32 - scale[k])
+    })
 }
 
 /// The synthetic bilinear blob's bytes (see the module docs), as

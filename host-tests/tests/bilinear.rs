@@ -14,7 +14,7 @@
 use estimator::blob::{BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, F32s, Family, Layout, Net};
 use estimator::{AUG_DIM, Aug, Error, Estimator, LATENT_DIM, Latent, Model, State};
 use host_tests::reference::{Dynamics, Reference};
-use host_tests::synthetic::{DT, LAYOUT, bilinear_blob, bilinear_matrices};
+use host_tests::synthetic::{DT, LAYOUT, bilinear_b, bilinear_blob, bilinear_matrices};
 use nalgebra::{DMatrix, DVector};
 use proptest::prelude::*;
 use rand::SeedableRng;
@@ -70,7 +70,7 @@ fn the_synthetic_blob_reads_with_bounded_dynamics() {
     assert_eq!(m.family(), Family::Bilinear);
     assert_eq!(m.schedule_steps(), 0);
     assert!(m.schedule_tail().is_none());
-    assert_eq!(body.weights.len(), LAYOUT.bilinear_arena_len());
+    assert_eq!(body.weights.len(), LAYOUT.bilinear_arena_len(true));
     let blob = m.blob();
     assert!(blob.f().is_empty() && blob.b().is_empty());
     assert!((0..BILINEAR_BLOCKS).all(|k| blob.bilinear(k).len() == BILINEAR_BLOCK_LEN));
@@ -151,7 +151,7 @@ fn a_bilinear_blob_that_does_not_fit_is_refused() {
     );
     // A NaN in F_11 (the last matrix).
     assert_eq!(
-        edited(|_, a| a[LAYOUT.bilinear_arena_len() - 1] = f32::NAN),
+        edited(|_, a| a[LAYOUT.bilinear_arena_len(true) - 1] = f32::NAN),
         Err(Error::BlobNonFinite)
     );
     // A hidden width this build does not run, and a width it runs whose
@@ -203,7 +203,7 @@ fn a_narrow_blob_reads_in_its_own_layout() {
         }
     }
     narrow.extend(wide.body.weights.iter().skip(LAYOUT.f_at()));
-    assert_eq!(narrow.len(), narrow_layout.bilinear_arena_len());
+    assert_eq!(narrow.len(), narrow_layout.bilinear_arena_len(true));
     let write = |hidden: u16, arena: &[f32]| {
         let mut b = wide;
         let le: Vec<u8> = arena.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -256,9 +256,17 @@ fn the_step_and_its_jacobian_match_the_f64_model_and_central_differences() {
         for (d, s) in g.iter_mut().zip(y.iter().chain(q)) {
             *d = grid(*s);
         }
-        let (next, jac) = m.bilinear_step(&g).unwrap();
-        assert_eq!(m.advance(&g)[..LATENT_DIM], next[..], "advance is the step");
-        assert_eq!(m.advance(&g)[LATENT_DIM..], g[LATENT_DIM..], "q is static");
+        let (next, jac) = m.bilinear_step(&g, 0.0).unwrap();
+        assert_eq!(
+            m.advance(&g, 0.0)[..LATENT_DIM],
+            next[..],
+            "advance is the step"
+        );
+        assert_eq!(
+            m.advance(&g, 0.0)[LATENT_DIM..],
+            g[LATENT_DIM..],
+            "q is static"
+        );
         let g64 = to_f64(&g);
         let (next64, jac64) = dynamics.linearise(&g64);
         let mags = step_magnitudes(&f, &g64);
@@ -275,8 +283,8 @@ fn the_step_and_its_jacobian_match_the_f64_model_and_central_differences() {
             plus[j] += h;
             minus[j] -= h;
             assert_eq!(f64::from(plus[j] - minus[j]), 2.0 * f64::from(h));
-            let (yp, _) = m.bilinear_step(&plus).unwrap();
-            let (ym, _) = m.bilinear_step(&minus).unwrap();
+            let (yp, _) = m.bilinear_step(&plus, 0.0).unwrap();
+            let (ym, _) = m.bilinear_step(&minus, 0.0).unwrap();
             let mp = step_magnitudes(&f, &to_f64(&plus));
             let mm = step_magnitudes(&f, &to_f64(&minus));
             // The f64 model's own central difference: f64 rounding only.
@@ -511,7 +519,7 @@ fn a_forecast_is_the_rollout_from_the_mean_and_follows_the_f64_dynamics() {
     est.forecast(&mut out).unwrap();
     let mean: Aug = est.mean().into();
     let mut rolled = [[0.0f32; 2]; 50];
-    m.rollout_from(&mean, &mut rolled).unwrap();
+    m.rollout_from(&mean, &[], &mut rolled).unwrap();
     // The same model from the same mean: bit for bit.
     assert_eq!(out, rolled);
     // And each forecast state is the decoded latent of the f32 model
@@ -530,7 +538,7 @@ fn a_forecast_is_the_rollout_from_the_mean_and_follows_the_f64_dynamics() {
     let (mut bound, mut worst) = (0.0f64, 0.0f64);
     for (k, x) in out.iter().enumerate() {
         bound = bound * norm + gamma(20) * step_magnitudes(&f, &g64).amax();
-        g32 = m.advance(&g32);
+        g32 = m.advance(&g32, 0.0);
         g64 = dynamics.linearise(&g64).0;
         let err = (to_f64(&g32) - &g64).amax();
         worst = worst.max(err / bound);
@@ -739,4 +747,78 @@ fn a_prediction_that_leaves_a_negative_variance_is_refused() {
     }
     // Without the check the ninth operation left P[1][1] = -2.1e-4.
     assert!(refused >= 1, "the case no longer reaches the refusal");
+}
+
+/// A torque `u` adds `u b(q)` to the step, `b(q) = B_0 + q_1 B_1 + q_2 B_2
+/// + q_1^2 B_11` (the synthetic blob's [`bilinear_b`]), and its slopes
+/// `u (B_1 + 2 q_1 B_11)`, `u B_2` to the Jacobian's parameter columns;
+/// the latent columns do not move. Checked against the same sums in f64,
+/// and the parameter columns against central differences of the f32 step.
+/// Tolerances: the f32 step rounds each of its 16 outputs after about 25
+/// operations on terms below 4 in magnitude, so 1e-5 absolute covers the
+/// difference of two of them; the central difference at h = 2^-8 divides
+/// two such roundings by 2h = 2^-7 (up to about 1.3e-3: the bound is
+/// 2e-3) and has no curvature error (the step is linear in `q_2` and
+/// quadratic in `q_1`, which a central difference takes exactly). A
+/// missing slope errs by `|u B_1|`, at least 0.047 here.
+#[test]
+fn a_torque_moves_the_step_by_b_of_q_and_its_slopes() {
+    let m = Model::from_bytes(blob()).unwrap();
+    assert!(m.is_driven());
+    let b = bilinear_b();
+    let states = swing(0.5, 2.0, 40);
+    let u = 0.75f32;
+    for (k, q) in [[0.0f32, 0.0], [-1.0, 0.5], [0.625, -0.75]]
+        .iter()
+        .enumerate()
+    {
+        let y = m.encode(&m.normalise(&states[8 * k]));
+        let mut g: Aug = [0.0; AUG_DIM];
+        for (d, s) in g.iter_mut().zip(y.iter().chain(q)) {
+            *d = *s;
+        }
+        let (free, jf) = m.bilinear_step(&g, 0.0).unwrap();
+        let (driven, jd) = m.bilinear_step(&g, u).unwrap();
+        let (q1, q2) = (f64::from(q[0]), f64::from(q[1]));
+        for i in 0..LATENT_DIM {
+            let bq = f64::from(b[0][i])
+                + q1 * f64::from(b[1][i])
+                + q2 * f64::from(b[2][i])
+                + q1 * q1 * f64::from(b[3][i]);
+            let moved = f64::from(driven[i]) - f64::from(free[i]);
+            assert!(
+                (moved - f64::from(u) * bq).abs() < 1e-5,
+                "y'[{i}] at {q:?}: {moved} vs {}",
+                f64::from(u) * bq
+            );
+            let d1 = f64::from(jd[LATENT_DIM][i]) - f64::from(jf[LATENT_DIM][i]);
+            let d2 = f64::from(jd[LATENT_DIM + 1][i]) - f64::from(jf[LATENT_DIM + 1][i]);
+            let want1 = f64::from(u) * (f64::from(b[1][i]) + 2.0 * q1 * f64::from(b[3][i]));
+            assert!((d1 - want1).abs() < 1e-5, "dq1[{i}]: {d1} vs {want1}");
+            assert!(
+                (d2 - f64::from(u) * f64::from(b[2][i])).abs() < 1e-5,
+                "dq2[{i}]"
+            );
+            for j in 0..LATENT_DIM {
+                assert_eq!(jd[j][i], jf[j][i], "a latent column moved");
+            }
+        }
+        let h = 1.0f32 / 256.0;
+        for j in [LATENT_DIM, LATENT_DIM + 1] {
+            let (mut plus, mut minus) = (g, g);
+            plus[j] += h;
+            minus[j] -= h;
+            let (yp, _) = m.bilinear_step(&plus, u).unwrap();
+            let (ym, _) = m.bilinear_step(&minus, u).unwrap();
+            for i in 0..LATENT_DIM {
+                let fd = (f64::from(yp[i]) - f64::from(ym[i])) / (2.0 * f64::from(h));
+                let err = (fd - f64::from(jd[j][i])).abs();
+                assert!(
+                    err < 2e-3,
+                    "column {j}, row {i} at {q:?}: fd {fd} vs {}",
+                    jd[j][i]
+                );
+            }
+        }
+    }
 }

@@ -358,7 +358,7 @@ fn the_length_reads_through_its_reciprocal_map() {
     // simulate takes values and runs on their coordinates.
     let (mut a, mut b) = ([[0.0f32; 2]; 127], [[0.0f32; 2]; 127]);
     m.simulate(&[2.0, 0.0], &[3.5, 0.0], &mut a).unwrap();
-    m.simulate_coordinates(&[2.0, 0.0], &m.coordinates(&[3.5, 0.0]), &mut b)
+    m.simulate_coordinates(&[2.0, 0.0], &m.coordinates(&[3.5, 0.0]), &[], &mut b)
         .unwrap();
     assert_eq!(a, b);
     // A length of 0 has no coordinate.
@@ -406,7 +406,7 @@ fn the_forecast_runs_on_from_the_filters_mean() {
     est.forecast(&mut out).unwrap();
     let g = est.mean();
     let mut sim = [[0.0f32; 2]; 100];
-    m.simulate_coordinates(&xs[0], &[g[16], g[17]], &mut sim)
+    m.simulate_coordinates(&xs[0], &[g[16], g[17]], &[], &mut sim)
         .unwrap();
     assert_eq!(out, sim);
     // After the window on a clean rollout the mean is within `R` (0.01
@@ -422,7 +422,7 @@ fn the_forecast_runs_on_from_the_filters_mean() {
     est.forecast(&mut out).unwrap();
     let g = est.mean();
     let mut sim = [[0.0f32; 2]; 10];
-    m.simulate_coordinates(&xs[WINDOW - 1], &[g[16], g[17]], &mut sim)
+    m.simulate_coordinates(&xs[WINDOW - 1], &[g[16], g[17]], &[], &mut sim)
         .unwrap();
     let worst = |f: &[[f32; 2]]| {
         f.iter()
@@ -459,11 +459,11 @@ fn the_forecast_runs_on_from_the_filters_mean() {
     for (d, v) in g.iter_mut().zip(est.mean().iter()) {
         *d = *v;
     }
-    let g1 = m.advance(&g);
+    let g1 = m.advance(&g, 0.0);
     let mut y = [0.0f32; estimator::LATENT_DIM];
     y.copy_from_slice(&g1[..estimator::LATENT_DIM]);
     assert_eq!(out[0], m.denormalise(&m.decode(&y)));
-    m.simulate_coordinates(&noisy[WINDOW - 1], &[g[16], g[17]], &mut sim)
+    m.simulate_coordinates(&noisy[WINDOW - 1], &[g[16], g[17]], &[], &mut sim)
         .unwrap();
     assert_ne!(out[0], sim[0]);
 }

@@ -32,7 +32,7 @@ fn small_blob_bytes() -> Vec<u8> {
     let layout = Layout {
         hidden: HIDDEN_NARROW,
     };
-    let weights = arena(layout.bilinear_arena_len());
+    let weights = arena(layout.bilinear_arena_len(true));
     let bits = [0b1010_0101u8];
     let blob = Blob {
         header: Header::with_hidden(HIDDEN_NARROW as u16),
@@ -93,9 +93,9 @@ fn hex(bytes: &[u8]) -> String {
 #[test]
 fn a_small_blob_is_written_as_the_spec_says() {
     let bytes = small_blob_bytes();
-    // Header: "KKF1", version 11, state 2, latent 16, params 2, hidden 64,
+    // Header: "KKF1", version 12, state 2, latent 16, params 2, hidden 64,
     // inputs 1 (each u16 one varint byte).
-    assert_eq!(hex(&bytes[..10]), "4b4b46310b0210024001");
+    assert_eq!(hex(&bytes[..10]), "4b4b46310c0210024001");
     // Body: dt 0.04 (0x3d23d70a), g 9.81 (0x411cf5c3), rig Simple (0),
     // family Bilinear (1), activation Tanh (1), norm_mu [0, -0.5],
     // norm_s [1, 2], then the first parameter: name "length" (6 bytes),
@@ -123,14 +123,15 @@ fn a_small_blob_is_written_as_the_spec_says() {
         )
     );
     // The arena starts at a multiple of 4 bytes, after 0-3 pad bytes, and
-    // runs to the CRC: 11,794 values at hidden width 64.
-    let arena_len = 11_794 * 4;
+    // runs to the CRC: 11,858 values at hidden width 64 (the MLPs'
+    // 10,770, four 16 x 16 matrices, four torque columns of 16).
+    let arena_len = 11_858 * 4;
     let arena_at = bytes.len() - 4 - arena_len;
     assert_eq!(arena_at % 4, 0);
-    assert_eq!(&bytes[arena_at..bytes.len() - 4], arena(11_794).as_slice());
-    assert_eq!(bytes.len(), 47_556);
+    assert_eq!(&bytes[arena_at..bytes.len() - 4], arena(11_858).as_slice());
+    assert_eq!(bytes.len(), 47_812);
     // The CRC-32/ISCSI of everything before it, little-endian.
-    assert_eq!(hex(&bytes[bytes.len() - 4..]), "de9d5369");
+    assert_eq!(hex(&bytes[bytes.len() - 4..]), "9b248a08");
     // And it reads back as what was written.
     let back = Blob::from_bytes(&bytes).unwrap();
     assert_eq!(back.body.params[1].name, "damping");
@@ -150,4 +151,36 @@ fn every_shipped_blob_writes_back_byte_for_byte() {
         let out = blob.to_slice(&mut buf).unwrap();
         assert!(out == bytes.as_slice(), "{name} does not write back");
     }
+}
+
+/// A bilinear blob of format 11, whose arena ends after `F_11` (no torque
+/// columns), reads as a free model (`B = 0`): the same small blob with its
+/// version set to 11 and its arena 64 values shorter.
+#[test]
+fn a_format_11_bilinear_blob_reads_as_free() {
+    let layout = Layout {
+        hidden: HIDDEN_NARROW,
+    };
+    let bytes = small_blob_bytes();
+    let blob = Blob::from_bytes(&bytes).unwrap();
+    let short = arena(layout.bilinear_arena_len(false));
+    let mut old = blob;
+    old.header.version = 11;
+    old.body.weights = F32s(&short);
+    let mut buf = vec![0u8; bytes.len() + 16];
+    let written = old.to_slice(&mut buf).unwrap().to_vec();
+    let model = Model::from_bytes(&written).unwrap();
+    assert!(!model.is_driven(), "format 11 carries no B");
+    assert!(
+        Model::from_bytes(&bytes).unwrap().is_driven(),
+        "format 12 carries B"
+    );
+    // Format 12 without the torque columns is refused: a truncated arena.
+    let mut cut = blob;
+    cut.body.weights = F32s(&short);
+    let n = cut.to_slice(&mut buf).unwrap().len();
+    assert_eq!(
+        Model::from_bytes(&buf[..n]).unwrap_err(),
+        estimator::Error::BlobShapeMismatch
+    );
 }

@@ -111,9 +111,21 @@ impl Layout {
         self.schedule_at() + steps * SCHEDULE_STEP_LEN + tail
     }
 
-    /// Length of a bilinear arena.
-    pub const fn bilinear_arena_len(self) -> usize {
+    /// Offset of a bilinear arena's `B_0, B_1, B_2, B_11` (format 12 on):
+    /// after its four matrices.
+    pub const fn bilinear_b_at(self) -> usize {
         self.f_at() + BILINEAR_BLOCKS * BILINEAR_BLOCK_LEN
+    }
+
+    /// Length of a bilinear arena: with its `B(q)` (`driven`, format 12
+    /// on) or without (format 11).
+    pub const fn bilinear_arena_len(self, driven: bool) -> usize {
+        self.bilinear_b_at()
+            + if driven {
+                BILINEAR_BLOCKS * LATENT_DIM
+            } else {
+                0
+            }
     }
 }
 
@@ -139,6 +151,13 @@ internal! {
     /// Unit: a count (matrices). Fixed by the bilinear model's form
     /// (docs/bilinear.md).
     pub const BILINEAR_BLOCKS: usize = 4;
+}
+internal! {
+    /// The first format whose bilinear arena carries `B(q)`.
+    ///
+    /// Unit: a count (a version number). Set by hand: the format that
+    /// added it.
+    pub const DRIVEN_VERSION: u16 = 12;
 }
 internal! {
     /// Values of one bilinear matrix.
@@ -187,6 +206,21 @@ impl<'a> Blob<'a> {
             match self.body.family {
                 Family::Linear => self.body.span(self.layout().b_at(), AUG_DIM * INPUT_DIM),
                 Family::Bilinear => F32s(&[]),
+            }
+        }
+    }
+
+    internal! {
+        /// A bilinear blob's `B_k` (`B_0`, `B_1`, `B_2`, `B_11` for
+        /// `k = 0..4`: `B(q) = B_0 + q_1 B_1 + q_2 B_2 + q_1^2 B_11`, a
+        /// column over the latent); empty for a linear blob, one of format
+        /// 11 (`B = 0`) or `k` out of range.
+        pub fn bilinear_b(&self, k: usize) -> F32s<'a> {
+            match self.body.family {
+                Family::Bilinear if k < BILINEAR_BLOCKS && self.header.version >= DRIVEN_VERSION => {
+                    self.body.span(self.layout().bilinear_b_at() + k * LATENT_DIM, LATENT_DIM)
+                }
+                _ => F32s(&[]),
             }
         }
     }

@@ -40,11 +40,13 @@ use serde::{Deserialize, Serialize};
 
 pub use envelope::Envelope;
 pub use format::{
-    Activation, Body, F32s, FORMAT_VERSION, Family, FilterSpec, Header, MAGIC, TrustSpec,
+    Activation, Body, F32s, FORMAT_VERSION, Family, FilterSpec, Header, MAGIC, OLDEST_READ_VERSION,
+    TrustSpec,
 };
 internal! {
     pub use layout::{
-        BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Layout, N_LAYERS, Net, SCHEDULE_STEP_LEN, TAIL_LEN,
+        BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, DRIVEN_VERSION, Layout, N_LAYERS, Net, SCHEDULE_STEP_LEN,
+        TAIL_LEN,
     };
 }
 pub use reading::{ParamSpec, Reading};
@@ -91,7 +93,7 @@ impl<'a> Blob<'a> {
         if header.magic != MAGIC {
             return Err(Error::BlobBadMagic);
         }
-        if header.version != FORMAT_VERSION {
+        if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&header.version) {
             return Err(Error::BlobBadVersion);
         }
         header.check_dims()?;
@@ -159,7 +161,9 @@ impl<'a> Blob<'a> {
         let len = match b.family {
             Family::Linear => self.layout().arena_len(b.filter.schedule_steps),
             // The extended filter's gains depend on the state: no schedule.
-            Family::Bilinear if b.filter.schedule_steps == 0 => self.layout().bilinear_arena_len(),
+            Family::Bilinear if b.filter.schedule_steps == 0 => self
+                .layout()
+                .bilinear_arena_len(self.header.version >= DRIVEN_VERSION),
             Family::Bilinear => return Err(Error::BlobShapeMismatch),
         };
         b.weights.check(len)?;
@@ -174,7 +178,9 @@ impl<'a> Blob<'a> {
                     let (i, j) = (k / AUG_DIM, k % AUG_DIM);
                     v == if i == j { 1.0 } else { 0.0 }
                 });
-        if !param_rows_identity {
+        // ... and the torque moves the latent only: `B`'s parameter rows zero.
+        let torque_static = self.b().iter().skip(LATENT_DIM).all(|v| v == 0.0);
+        if !(param_rows_identity && torque_static) {
             return Err(Error::BlobParamsNotStatic);
         }
         for p in &b.params {

@@ -257,7 +257,7 @@ impl<'m> Estimator<'m> {
         if !self.kalman.started {
             return Err(Error::FilterNotStarted);
         }
-        self.model.rollout_from(&self.kalman.mean, out)?;
+        self.model.rollout_from(&self.kalman.mean, &[], out)?;
         let offset = self.centre.applied();
         for [theta, _] in out.iter_mut() {
             *theta += offset;
@@ -316,12 +316,51 @@ impl<'m> Estimator<'m> {
     /// # Ok::<(), estimator::Error>(())
     /// ```
     pub fn step(&mut self, raw: &State) -> Result<StepOutput, Error> {
+        self.step_driven(raw, 0.0)
+    }
+
+    /// Consumes one raw measurement taken after the torque `u` (N m) was
+    /// held since the one before: the prediction to it is the model's
+    /// under that torque (`F g + B u`; the protocol CSV's `u` of the row
+    /// before). `u = 0` is [`Estimator::step`]. A blob without a torque's
+    /// column ([`Model::is_driven`]) predicts as if free.
+    ///
+    /// # Errors
+    ///
+    /// As [`Estimator::step`]; [`Error::NonFiniteInput`] for a torque that
+    /// is not finite or above [`MAX_ABS_INPUT`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use estimator::blob::Aligned;
+    /// use estimator::{Estimator, Model};
+    ///
+    /// static ROD: &Aligned<[u8]> =
+    ///     &Aligned(*include_bytes!("../../../weights/pendulum-bilinear.kkf"));
+    /// let model = Model::from_bytes(&ROD.0)?;
+    /// let mut est = Estimator::new(&model).at_trained_gravity();
+    /// // A 3 m rod pushed by 0.5 N m from rest, 0.05 s a step.
+    /// let us = [0.5f32; 64];
+    /// let mut xs = [[0.0f32; 2]; 64];
+    /// model.simulate_driven(&[1.6, 0.0], &[3.0, 0.0], &us, &mut xs)?;
+    /// let mut out = est.step(&[1.6, 0.0])?;
+    /// for (x, u) in xs.iter().zip(&us) {
+    ///     out = est.step_driven(x, *u)?;
+    /// }
+    /// assert!(out.params[0].is_finite());
+    /// assert_eq!(est.step_driven(&[1.0, 0.0], f32::NAN).unwrap_err(), estimator::Error::NonFiniteInput);
+    /// # Ok::<(), estimator::Error>(())
+    /// ```
+    pub fn step_driven(&mut self, raw: &State, u: f32) -> Result<StepOutput, Error> {
         if !raw
             .iter()
+            .chain(core::iter::once(&u))
             .all(|v| v.is_finite() && v.abs() <= MAX_ABS_INPUT)
         {
             return Err(Error::NonFiniteInput);
         }
+        self.kalman.u = u;
         let [theta, rate] = *raw;
         // The angle's zero taken off, the measurement encoded.
         let centred = self.centre.centred(theta, rate);

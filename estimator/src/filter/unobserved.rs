@@ -62,9 +62,24 @@ impl Estimator<'_> {
     /// # Ok::<(), estimator::Error>(())
     /// ```
     pub fn predict(&mut self) -> Result<StepOutput, Error> {
+        self.predict_driven(0.0)
+    }
+
+    /// [`Estimator::predict`] under the torque `u` (N m) held over the
+    /// step ([`Estimator::step_driven`]).
+    ///
+    /// # Errors
+    ///
+    /// As [`Estimator::predict`]; [`Error::NonFiniteInput`] for a torque
+    /// that is not finite.
+    pub fn predict_driven(&mut self, u: f32) -> Result<StepOutput, Error> {
+        if !u.is_finite() {
+            return Err(Error::NonFiniteInput);
+        }
         if !self.kalman.started {
             return Err(Error::FilterNotStarted);
         }
+        self.kalman.u = u;
         self.advance_unobserved()?;
         self.outlier = false;
         self.innovation = None;

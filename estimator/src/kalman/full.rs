@@ -32,7 +32,7 @@ impl Kalman<'_> {
         let mut mean = self.mean;
         let z = [0.0f32; LATENT_DIM];
         for _ in 0..self.t {
-            mean = predict_update(self.model, &mean, &p, &mut next, &z, &mut 0.0)?;
+            mean = predict_update(self.model, &mean, 0.0, &p, &mut next, &z, &mut 0.0)?;
             p = next;
         }
         Ok(p)
@@ -50,7 +50,8 @@ impl Kalman<'_> {
         if self.model.family() == Family::Bilinear {
             return self.predict_only_bilinear(p);
         }
-        let y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
+        let mut y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
+        self.model.drive_linear(self.u, &mut y);
         self.predict_only_with(p, y, self.model.koopman_columns())
     }
 
@@ -60,7 +61,7 @@ impl Kalman<'_> {
     fn predict_only_bilinear(&self, p: &Cov) -> Result<(Aug, Cov), Error> {
         let (y, ct) = self
             .model
-            .bilinear_step(&self.mean)
+            .bilinear_step(&self.mean, self.u)
             .ok_or(Error::BlobShapeMismatch)?;
         self.predict_only_with(p, y, &ct)
     }
@@ -132,21 +133,24 @@ impl Kalman<'_> {
 ///
 /// The bilinear family runs the same recursion as an extended filter:
 /// `y' = F(q) y` and, for `C`, the latent rows of the Jacobian at the
-/// mean ([`crate::Model::bilinear_step`]). `out` is written whatever the
+/// mean ([`crate::Model::bilinear_step`]); `u` the torque held over the
+/// step (`B u`). `out` is written whatever the
 /// result; the caller keeps `p` until it takes the update.
 pub(crate) fn predict_update(
     model: &Model<'_>,
     mean: &Aug,
+    u: f32,
     p: &Cov,
     out: &mut Cov,
     z: &Latent,
     nis: &mut f32,
 ) -> Result<Aug, Error> {
     if model.family() == Family::Bilinear {
-        return predict_update_bilinear(model, mean, p, out, z, nis);
+        return predict_update_bilinear(model, mean, u, p, out, z, nis);
     }
     let ct = model.koopman_columns();
-    let y = combo(mean.iter().copied().zip(ct));
+    let mut y = combo(mean.iter().copied().zip(ct));
+    model.drive_linear(u, &mut y);
     predict_update_with(model, mean, p, out, z, ct, &y, nis)
 }
 
@@ -156,6 +160,7 @@ pub(crate) fn predict_update(
 fn predict_update_bilinear(
     model: &Model<'_>,
     mean: &Aug,
+    u: f32,
     p: &Cov,
     out: &mut Cov,
     z: &Latent,
@@ -163,7 +168,7 @@ fn predict_update_bilinear(
 ) -> Result<Aug, Error> {
     let mut ct = [[0.0f32; LATENT_DIM]; AUG_DIM];
     let y = model
-        .bilinear_step_into(mean, &mut ct)
+        .bilinear_step_into(mean, u, &mut ct)
         .ok_or(Error::BlobShapeMismatch)?;
     predict_update_with(model, mean, p, out, z, &ct, &y, nis)
 }

@@ -97,6 +97,10 @@ pub(crate) struct Kalman<'m> {
     pb: ParamSquare,
     /// The parameters' standard deviations, `sqrt(diag P)` of `p`.
     pub(crate) param_std: [f32; PARAM_DIM],
+    /// The torque held since the last measurement (N m; 0: free), which
+    /// the next prediction applies (`B u`). The caller sets it before each
+    /// update or prediction.
+    pub(crate) u: f32,
     /// Updates so far (0 at the first measurement).
     pub(crate) t: u32,
     /// The first measurement has been taken.
@@ -135,6 +139,7 @@ impl<'m> Kalman<'m> {
             v: [[0.0; LATENT_DIM]; PARAM_DIM],
             pb: [[0.0; PARAM_DIM]; PARAM_DIM],
             param_std: [0.0; PARAM_DIM],
+            u: 0.0,
             t: 0,
             started: false,
             scheduled,
@@ -192,9 +197,9 @@ impl<'m> Kalman<'m> {
             }
             (None, _) => {
                 let mut n = 0.0;
-                let (model, mean) = (self.model, self.mean);
+                let (model, mean, u) = (self.model, self.mean, self.u);
                 let (p, next) = self.buffers();
-                let m = match full::predict_update(model, &mean, p, next, z, &mut n) {
+                let m = match full::predict_update(model, &mean, u, p, next, z, &mut n) {
                     Err(Error::FilterNotPositiveDefinite) => {
                         return Ok(Updated::Refused(f32::INFINITY));
                     }
@@ -368,11 +373,12 @@ impl<'m> Kalman<'m> {
         AugMatrix::from_data(ArrayStorage(p))
     }
 
-    /// The predicted latent `y' = C g = sum_k g_k C^T_k` and the innovation
-    /// `nu = z - y'`: how every update starts.
+    /// The predicted latent `y' = C g + b u = sum_k g_k C^T_k + b u` and the
+    /// innovation `nu = z - y'`: how every update of a linear blob starts.
     #[inline(always)]
     pub(crate) fn predict_latent(&self, z: &Latent) -> (Latent, Latent) {
-        let y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
+        let mut y = combo(self.mean.iter().copied().zip(self.model.koopman_columns()));
+        self.model.drive_linear(self.u, &mut y);
         let mut nu = *z;
         for (v, yi) in nu.iter_mut().zip(&y) {
             *v -= yi;

@@ -2,7 +2,8 @@
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
 use crate::blob::{
-    BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Family, Layout, Net, SCHEDULE_STEP_LEN,
+    BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, DRIVEN_VERSION, Family, Layout, Net,
+    SCHEDULE_STEP_LEN,
 };
 use crate::{
     AUG_DIM, Aug, Error, HIDDEN_DIM, HIDDEN_NARROW, LATENT_DIM, Latent, PARAM_DIM,
@@ -126,6 +127,19 @@ pub struct Model<'a> {
     ct: KoopmanColumns,
     /// `F_0, F_1, F_2, F_11` of a bilinear blob, in place.
     bilinear: Option<[&'a LatentRows; BILINEAR_BLOCKS]>,
+    /// The latent rows of `B` (the torque's column; its parameter rows are
+    /// zero): a linear blob's, or a bilinear blob's `B_0, B_1, B_2, B_11`
+    /// (format 12 on). `None`: a free model (`B = 0`).
+    drive: Option<Drive<'a>>,
+}
+
+/// How the torque `u` enters the latent step: `y' = ... + u b`.
+#[derive(Debug, Clone, Copy)]
+enum Drive<'a> {
+    /// A linear blob's `b`, the same at every parameter.
+    Linear(&'a [f32; LATENT_DIM]),
+    /// A bilinear blob's `b(q) = B_0 + q_1 B_1 + q_2 B_2 + q_1^2 B_11`.
+    Bilinear([&'a [f32; LATENT_DIM]; BILINEAR_BLOCKS]),
 }
 
 impl<'a> Model<'a> {
@@ -175,6 +189,15 @@ impl<'a> Model<'a> {
             None => columns(arena, layout.f_at())?,
             Some(_) => [[0.0; LATENT_DIM]; AUG_DIM],
         };
+        let column = |at: usize| rows::<1, LATENT_DIM>(arena, at).map(|[r]| r);
+        let drive = match blob.body.family {
+            Family::Linear => Some(Drive::Linear(column(layout.b_at())?)),
+            Family::Bilinear if blob.header.version >= DRIVEN_VERSION => {
+                let at = |k: usize| column(layout.bilinear_b_at() + k * LATENT_DIM);
+                Some(Drive::Bilinear([at(0)?, at(1)?, at(2)?, at(3)?]))
+            }
+            Family::Bilinear => None,
+        };
         let steps = usize::from(blob.body.filter.schedule_steps);
         let tail = if steps > 0 {
             Some(Tail::from_arena(
@@ -192,6 +215,7 @@ impl<'a> Model<'a> {
             schedule_at: layout.schedule_at(),
             ct,
             bilinear,
+            drive,
         })
     }
 
@@ -208,9 +232,9 @@ impl<'a> Model<'a> {
         /// F_2 y]`, by columns (entry `[j][i]` is `d y'_i / d g_j`: the filter
         /// sums along columns). `None` for a linear model (whose columns are
         /// [`Model::koopman_columns`], the same at every `g`).
-        pub fn bilinear_step(&self, m: &Aug) -> Option<(Latent, KoopmanColumns)> {
+        pub fn bilinear_step(&self, m: &Aug, u: f32) -> Option<(Latent, KoopmanColumns)> {
             let mut jac = [[0.0f32; LATENT_DIM]; AUG_DIM];
-            let next = self.bilinear_step_into(m, &mut jac)?;
+            let next = self.bilinear_step_into(m, u, &mut jac)?;
             Some((next, jac))
         }
     }
@@ -221,7 +245,7 @@ impl<'a> Model<'a> {
         /// neither zeroes nor copies them. On `None`, `jac` is partly
         /// written.
         #[inline(never)]
-        pub fn bilinear_step_into(&self, m: &Aug, jac: &mut KoopmanColumns) -> Option<Latent> {
+        pub fn bilinear_step_into(&self, m: &Aug, u: f32, jac: &mut KoopmanColumns) -> Option<Latent> {
             let [f0, f1, f2, f11] = self.bilinear?;
             let (y, q) = m.split_first_chunk::<LATENT_DIM>()?;
             let (q1, q2) = (q.first().copied()?, q.get(1).copied()?);
@@ -242,6 +266,16 @@ impl<'a> Model<'a> {
                 if let (Some(d1), Some(d2)) = (dq1.get_mut(i), dq2.get_mut(i)) {
                     *d1 = u1 + 2.0 * q1 * u11;
                     *d2 = u2;
+                }
+            }
+            // The torque: `y' += u b(q)`, and `b(q)`'s slopes in `q` on the
+            // parameters' columns of the Jacobian.
+            if let (Some(Drive::Bilinear([b0, b1, b2, b11])), true) = (self.drive, u != 0.0) {
+                let b = b0.iter().zip(b1).zip(b2.iter().zip(b11));
+                for (((n, d1), d2), ((c0, c1), (c2, c11))) in next.iter_mut().zip(dq1.iter_mut()).zip(dq2.iter_mut()).zip(b) {
+                    *n += u * (((c0 + q1 * c1) + q2 * c2) + q11 * c11);
+                    *d1 += u * (c1 + 2.0 * q1 * c11);
+                    *d2 += u * c2;
                 }
             }
             // The latent columns, one at a time: column `j` of `F(q)`.
@@ -359,25 +393,57 @@ impl<'a> Model<'a> {
     }
 
     internal! {
-        /// One step of the augmented model, `p' = p`: for the linear family
-        /// `g' = F g`, that is `y' = C g` (the parameter rows of `F` are the
-        /// identity); for the bilinear `y' = F(q) y` ([`Model::bilinear_step`]).
-        pub fn advance(&self, m: &Aug) -> Aug {
+        /// One step of the augmented model under the torque `u` (N m, held
+        /// over the step), `p' = p`: for the linear family `g' = F g + B u`,
+        /// that is `y' = C g + b u` (the parameter rows of `F` are the
+        /// identity, those of `B` zero); for the bilinear
+        /// `y' = F(q) y + b(q) u` ([`Model::bilinear_step`]).
+        pub fn advance(&self, m: &Aug, u: f32) -> Aug {
             let mut out = *m;
             if self.bilinear.is_some() {
-                if let Some((y, _)) = self.bilinear_step(m) {
+                if let Some((y, _)) = self.bilinear_step(m, u) {
                     for (o, v) in out.iter_mut().zip(&y) {
                         *o = *v;
                     }
                 }
                 return out;
             }
-            for (i, o) in out.iter_mut().take(LATENT_DIM).enumerate() {
+            let mut y = [0.0f32; LATENT_DIM];
+            for (i, o) in y.iter_mut().enumerate() {
                 *o = self.ct.iter().zip(m).fold(0.0, |acc, (col, x)| {
                     acc + col.get(i).copied().unwrap_or(0.0) * x
                 });
             }
+            self.drive_linear(u, &mut y);
+            for (o, v) in out.iter_mut().zip(&y) {
+                *o = *v;
+            }
             out
+        }
+    }
+
+    internal! {
+        /// `y += u b` for a linear blob (nothing for `u = 0`, a free step,
+        /// or a bilinear blob, whose `b(q)` [`Model::bilinear_step_into`]
+        /// adds).
+        #[inline(always)]
+        pub fn drive_linear(&self, u: f32, y: &mut Latent) {
+            if let (Some(Drive::Linear(b)), true) = (self.drive, u != 0.0) {
+                for (yi, bi) in y.iter_mut().zip(b) {
+                    *yi += u * bi;
+                }
+            }
+        }
+    }
+
+    /// Whether the blob carries a torque's column `B` (a linear blob's
+    /// slot, or a bilinear blob of format 12 on) that is not all zero: a
+    /// model of the driven pendulum. Without one, torques are ignored.
+    pub fn is_driven(&self) -> bool {
+        match self.drive {
+            Some(Drive::Linear(b)) => b.iter().any(|v| *v != 0.0),
+            Some(Drive::Bilinear(bs)) => bs.iter().any(|b| b.iter().any(|v| *v != 0.0)),
+            None => false,
         }
     }
 
@@ -413,7 +479,25 @@ impl<'a> Model<'a> {
         params: &[f32; PARAM_DIM],
         out: &mut [State],
     ) -> Result<(), Error> {
-        self.simulate_coordinates(x0, &self.coordinates(params), out)
+        self.simulate_coordinates(x0, &self.coordinates(params), &[], out)
+    }
+
+    /// [`Model::simulate`] under torques: `us[k]` (N m) is held from the
+    /// state before `out[k]` to it (the protocol CSV's `u` of the row
+    /// before); steps past the end of `us` are free.
+    ///
+    /// # Errors
+    ///
+    /// As [`Model::simulate`]; [`Error::NonFiniteInput`] for a torque that
+    /// is not finite.
+    pub fn simulate_driven(
+        &self,
+        x0: &State,
+        params: &[f32; PARAM_DIM],
+        us: &[f32],
+        out: &mut [State],
+    ) -> Result<(), Error> {
+        self.simulate_coordinates(x0, &self.coordinates(params), us, out)
     }
 
     internal! {
@@ -429,12 +513,13 @@ impl<'a> Model<'a> {
     }
 
     internal! {
-        /// [`Model::simulate`] from the parameters' filter coordinates `q`
-        /// ([`crate::FilterReport::coordinate`]).
+        /// [`Model::simulate_driven`] from the parameters' filter coordinates
+        /// `q` ([`crate::FilterReport::coordinate`]).
         pub fn simulate_coordinates(
             &self,
             x0: &State,
             q: &[f32; PARAM_DIM],
+            us: &[f32],
             out: &mut [State],
         ) -> Result<(), Error> {
             if !(x0.iter().chain(q).all(|v| v.is_finite())) {
@@ -445,22 +530,23 @@ impl<'a> Model<'a> {
             for (d, s) in m.iter_mut().zip(y0.iter().chain(q)) {
                 *d = *s;
             }
-            self.rollout_from(&m, out)
+            self.rollout_from(&m, us, out)
         }
     }
 
     internal! {
         /// Rolls the augmented model forward from `[y; p]` = `g0` (a filter's
-        /// mean, [`crate::Estimator::forecast`]), writing the decoded raw
-        /// states `x_1 .. x_n` into `out`. A non-finite `g0` is refused with
-        /// [`Error::NonFiniteInput`].
-        pub fn rollout_from(&self, g0: &Aug, out: &mut [State]) -> Result<(), Error> {
-            if !g0.iter().all(|v| v.is_finite()) {
+        /// mean, [`crate::Estimator::forecast`]) under the torques `us`
+        /// (`us[k]` before `out[k]`; free past its end), writing the
+        /// decoded raw states `x_1 .. x_n` into `out`. A non-finite `g0` or
+        /// torque is refused with [`Error::NonFiniteInput`].
+        pub fn rollout_from(&self, g0: &Aug, us: &[f32], out: &mut [State]) -> Result<(), Error> {
+            if !g0.iter().chain(us).all(|v| v.is_finite()) {
                 return Err(Error::NonFiniteInput);
             }
             let mut m = *g0;
-            for o in out.iter_mut() {
-                m = self.advance(&m);
+            for (k, o) in out.iter_mut().enumerate() {
+                m = self.advance(&m, us.get(k).copied().unwrap_or(0.0));
                 let mut y = [0.0; LATENT_DIM];
                 for (d, s) in y.iter_mut().zip(&m) {
                     *d = *s;

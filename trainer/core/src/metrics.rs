@@ -38,17 +38,20 @@ pub fn scaled_mse(truth: &[[f64; 2]], sim: &[[f64; 2]], scale: [f64; 2]) -> f64 
 
 /// The model's simulation of `xs[1..]` from `xs[0]` at the parameters'
 /// filter coordinates `q` (`StepOutput::coordinate`, or
-/// `Model::coordinates` of values), as `f64` states.
+/// `Model::coordinates` of values) under the torques `us` (`us[k]` held
+/// from `xs[k]` to `xs[k + 1]`; empty: free), as `f64` states.
 pub fn simulate(
     model: &Model<'_>,
     xs: &[[f64; 2]],
+    us: &[f64],
     q: [f32; 2],
 ) -> Result<Vec<[f64; 2]>, estimator::Error> {
     let Some(x0) = xs.first() else {
         return Ok(Vec::new());
     };
     let mut out = vec![[0.0f32; STATE_DIM]; xs.len() - 1];
-    model.simulate_coordinates(&[x0[0] as f32, x0[1] as f32], &q, &mut out)?;
+    let us: Vec<f32> = us.iter().map(|u| *u as f32).collect();
+    model.simulate_coordinates(&[x0[0] as f32, x0[1] as f32], &q, &us, &mut out)?;
     Ok(out
         .iter()
         .map(|s| [f64::from(s[0]), f64::from(s[1])])
@@ -85,9 +88,10 @@ pub fn correlation_inflation(rho: f64, cap: f64) -> f64 {
 pub fn simulation_mse(
     model: &Model<'_>,
     xs: &[[f64; 2]],
+    us: &[f64],
     q: [f32; 2],
 ) -> Result<f64, estimator::Error> {
-    let sim = simulate(model, xs, q)?;
+    let sim = simulate(model, xs, us, q)?;
     let s = model.blob().body.norm_s;
     Ok(scaled_mse(
         xs.get(1..).unwrap_or(&[]),

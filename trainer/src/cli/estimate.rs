@@ -220,6 +220,7 @@ impl<'a> Report<'a> {
             id: r.id,
             t: r.t[..n].to_vec(),
             xs: r.xs[..n].to_vec(),
+            us: Vec::new(),
         };
         let g = f64::from(self.a.g.unwrap_or(self.body.g));
         let mut filter = Peer::new(PeerConfig::new(g, self.body.rig));

@@ -134,7 +134,7 @@ impl<'m> Follow<'m> {
                 .est
                 .insert(report.estimator(fresh, 1, self.stream.source())?),
         };
-        let measured = self.run.sample(est, t, &x, self.dt)?.measured;
+        let measured = self.run.sample(est, t, &x, 0.0, self.dt)?.measured;
         Ok(measured as u64 % self.every == 0)
     }
 

@@ -60,6 +60,7 @@ impl Part {
             id: self.series.id,
             t: self.series.t[..self.cut].to_vec(),
             xs: self.series.xs[..self.cut].to_vec(),
+            us: Vec::new(),
         }
     }
 }
@@ -132,6 +133,7 @@ fn split(
             id: r.id,
             t: (0..n).map(|k| k as f64 * dt).collect(),
             xs,
+            us: Vec::new(),
         },
         cut,
         diagnosis: d,
@@ -315,6 +317,7 @@ mod tests {
                 id: 0,
                 t: t.clone(),
                 xs: rec.theta.iter().zip(&xs).map(|(a, x)| [*a, x[1]]).collect(),
+                us: Vec::new(),
             };
             let part = split("rod", &rec, &r, 0.0, dt, &|_| {}).unwrap();
             let d = &part.diagnosis;

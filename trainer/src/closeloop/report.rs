@@ -68,6 +68,7 @@ fn shown(parts: &[Part], sidecar: &Sidecar) -> Dataset {
                     id: r.id,
                     t: r.t[from..to].to_vec(),
                     xs: r.xs[from..to].to_vec(),
+                    us: Vec::new(),
                 }
             })
             .collect(),

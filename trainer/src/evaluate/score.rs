@@ -103,19 +103,26 @@ pub fn score(model: &Model<'_>, ds: &Dataset) -> Result<Vec<RolloutScore>> {
     let mut out = Vec::new();
     for r in &ds.rollouts {
         let m = ds.meta(r.id).context("test rollout without truth")?;
-        let mse_true = simulation_mse(model, &r.xs, model.coordinates(&[m.length as f32, 0.0]))?;
+        let mse_true = simulation_mse(
+            model,
+            &r.xs,
+            &r.us,
+            model.coordinates(&[m.length as f32, 0.0]),
+        )?;
         let mut est = Estimator::new(model).at_trained_gravity();
         let mut last = None;
         let mut length_trace = Vec::with_capacity(WINDOW);
         let mut corrections = Vec::with_capacity(WINDOW);
-        for x in states_f32(&r.xs).iter().take(WINDOW) {
-            let o = est.step(x)?;
+        for (k, x) in states_f32(&r.xs).iter().take(WINDOW).enumerate() {
+            // The torque held since the measurement before.
+            let u = k.checked_sub(1).map_or(0.0, |j| r.u(j)) as f32;
+            let o = est.step_driven(x, u)?;
             length_trace.push(o.params[0]);
             corrections.push(o.filter.correction[0]);
             last = Some(o);
         }
         let last = last.context("empty rollout")?;
-        let mse_klm = simulation_mse(model, &r.xs, last.filter.coordinate)?;
+        let mse_klm = simulation_mse(model, &r.xs, &r.us, last.filter.coordinate)?;
         out.push(RolloutScore {
             rollout: r.id,
             length: m.length,
@@ -156,7 +163,12 @@ pub fn score_baselines(
         let est = mlp.estimate(&xs)?;
         for ((s, r), e) in scores.iter_mut().zip(&ds.rollouts).zip(est) {
             s.mlp_est = Some(e);
-            s.mse_mlp = Some(simulation_mse(model, &r.xs, model.coordinates(&[e, 0.0]))?);
+            s.mse_mlp = Some(simulation_mse(
+                model,
+                &r.xs,
+                &r.us,
+                model.coordinates(&[e, 0.0]),
+            )?);
         }
     }
     if let Some(cbm) = cbm {

@@ -50,6 +50,7 @@ fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
             id: id as u32,
             t,
             xs,
+            us: Vec::new(),
         });
         metas.push(RolloutMeta {
             rollout: id as u32,

@@ -103,6 +103,22 @@ pub struct Rollout {
     pub t: Vec<f64>,
     /// `(theta, theta_dot)` per observation.
     pub xs: Vec<[f64; 2]>,
+    /// The torque, N m, held from each observation to the next (the
+    /// protocol CSV's `u`; the last row's is not applied); empty for a
+    /// free pendulum (no `u` column).
+    pub us: Vec<f64>,
+}
+
+impl Rollout {
+    /// The torque held from observation `k` to `k + 1` (0 when free).
+    pub fn u(&self, k: usize) -> f64 {
+        self.us.get(k).copied().unwrap_or(0.0)
+    }
+
+    /// Whether any torque is applied.
+    pub fn driven(&self) -> bool {
+        self.us.iter().any(|u| *u != 0.0)
+    }
 }
 
 /// Rollouts with their truth (when known).

@@ -1,6 +1,8 @@
 //! The project's CSV, `rollout,t,theta,theta_dot` (simulated and imported
-//! data alike), and its JSON sidecar of each rollout's truth (and, for an
-//! import, of how each recording was sampled: `sources`).
+//! data alike), with a fifth column `u` for a driven pendulum (the torque,
+//! N m, held from the row to the next, as the protocol writes it), and its
+//! JSON sidecar of each rollout's truth (and, for an import, of how each
+//! recording was sampled: `sources`).
 
 use std::path::{Path, PathBuf};
 
@@ -11,15 +13,27 @@ use crate::protocol::{DT, ROLLOUT_LEN};
 
 /// The CSV header line.
 pub const CSV_HEADER: &str = "rollout,t,theta,theta_dot";
+/// The CSV header line of a driven set.
+pub const CSV_HEADER_DRIVEN: &str = "rollout,t,theta,theta_dot,u";
 
-/// The CSV text of a data set.
+/// The CSV text of a data set: with the `u` column where any rollout has
+/// torques.
 pub fn to_csv(ds: &Dataset) -> String {
+    let driven = ds.rollouts.iter().any(|r| !r.us.is_empty());
     let mut s = String::with_capacity(ds.rollouts.len() * ROLLOUT_LEN * 48);
-    s.push_str(CSV_HEADER);
+    s.push_str(if driven {
+        CSV_HEADER_DRIVEN
+    } else {
+        CSV_HEADER
+    });
     s.push('\n');
     for r in &ds.rollouts {
-        for (t, x) in r.t.iter().zip(&r.xs) {
-            s.push_str(&format!("{},{:.6},{},{}\n", r.id, t, x[0], x[1]));
+        for (k, (t, x)) in r.t.iter().zip(&r.xs).enumerate() {
+            s.push_str(&format!("{},{:.6},{},{}", r.id, t, x[0], x[1]));
+            if driven {
+                s.push_str(&format!(",{}", r.u(k)));
+            }
+            s.push('\n');
         }
     }
     s
@@ -92,18 +106,26 @@ pub fn read_sources(path: &Path) -> anyhow::Result<Vec<SourceMeta>> {
 /// contiguous with increasing `t`; every value finite; each rollout at
 /// least `min_rows`.
 pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvError> {
-    if table.header != ["rollout", "t", "theta", "theta_dot"] {
-        return Err(table.error(
-            1,
-            format!(
-                "header is {:?}, expected {CSV_HEADER:?}",
-                table.header.join(",")
-            ),
-        ));
-    }
+    let driven = match table.header.as_slice() {
+        [a, b, c, d] if [a, b, c, d] == ["rollout", "t", "theta", "theta_dot"] => false,
+        [a, b, c, d, e] if [a, b, c, d, e] == ["rollout", "t", "theta", "theta_dot", "u"] => true,
+        _ => {
+            return Err(table.error(
+                1,
+                format!(
+                    "header is {:?}, expected {CSV_HEADER:?} or {CSV_HEADER_DRIVEN:?}",
+                    table.header.join(",")
+                ),
+            ));
+        }
+    };
+    let columns = if driven { 5 } else { 4 };
     let mut out: Vec<Rollout> = Vec::new();
     if let Some((row, n)) = table.ragged() {
-        return Err(table.error(table.line(row), format!("expected 4 columns, found {n}")));
+        return Err(table.error(
+            table.line(row),
+            format!("expected {columns} columns, found {n}"),
+        ));
     }
     for row in 0..table.len() {
         let n = table.line(row);
@@ -128,6 +150,9 @@ pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvErro
                 }
                 r.t.push(v[0]);
                 r.xs.push([v[1], v[2]]);
+                if driven {
+                    r.us.push(table.number(row, 4, "u")?);
+                }
             }
             _ => {
                 if out.iter().any(|r| r.id == id) {
@@ -136,10 +161,16 @@ pub fn parse_csv(table: &Table, min_rows: usize) -> Result<Vec<Rollout>, CsvErro
                         format!("rollout {id} appears again after another rollout"),
                     ));
                 }
+                let us = if driven {
+                    vec![table.number(row, 4, "u")?]
+                } else {
+                    Vec::new()
+                };
                 out.push(Rollout {
                     id,
                     t: vec![v[0]],
                     xs: vec![[v[1], v[2]]],
+                    us,
                 });
             }
         }

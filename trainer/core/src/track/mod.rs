@@ -44,9 +44,11 @@ pub fn track_each(
     let n = limit.unwrap_or(r.xs.len()).min(r.xs.len());
     anyhow::ensure!(n >= 1, "rollout {}: no samples", r.id);
     let mut run = Run::default();
-    for (t, x) in r.t.iter().zip(&r.xs).take(n) {
+    for (k, (t, x)) in r.t.iter().zip(&r.xs).take(n).enumerate() {
+        // The torque held since the sample before (none before the first).
+        let u = k.checked_sub(1).map_or(0.0, |j| r.u(j));
         let out = run
-            .sample(est, *t, x, dt)
+            .sample(est, *t, x, u, dt)
             .map_err(|e| anyhow::anyhow!("rollout {}: {e}", r.id))?;
         each(*t, &out.out);
     }
@@ -66,13 +68,16 @@ pub struct Run {
 }
 
 impl Run {
-    /// Filters the sample `x` at `t` with `est`, predicting across the whole
-    /// steps of `dt` missing before it; an error names the stamps or the time.
+    /// Filters the sample `x` at `t` with `est`, the torque `u` (N m) held
+    /// since the sample before, predicting across the whole steps of `dt`
+    /// missing before it (under the same torque); an error names the
+    /// stamps or the time.
     pub fn sample(
         &mut self,
         est: &mut Estimator<'_>,
         t: f64,
         x: &[f64; 2],
+        u: f64,
         dt: f64,
     ) -> anyhow::Result<&Tracked> {
         let fail = |e: estimator::Error| anyhow::anyhow!("at t = {t} s: {e}");
@@ -83,12 +88,14 @@ impl Run {
         if let Some(prev) = self.last {
             let s = model_steps(&[prev, t], dt).map_err(|e| anyhow::anyhow!(e))?;
             let s = s.first().copied().unwrap_or(1);
-            if s > 1 {
-                est.skip(s - 1).map_err(fail)?;
-                predicted += u64::from(s - 1);
+            for _ in 1..s {
+                est.predict_driven(u as f32).map_err(fail)?;
+                predicted += 1;
             }
         }
-        let out = est.step(&[x[0] as f32, x[1] as f32]).map_err(fail)?;
+        let out = est
+            .step_driven(&[x[0] as f32, x[1] as f32], u as f32)
+            .map_err(fail)?;
         measured += 1;
         self.last = Some(t);
         let model = est.model_params(&out.filter.coordinate);

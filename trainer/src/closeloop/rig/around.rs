@@ -377,7 +377,12 @@ mod tests {
         let diagnosis = diagnose::diagnose_recording(&t, &theta).unwrap();
         Part {
             source: "viscous and drag".into(),
-            series: Rollout { id: 0, t, xs },
+            series: Rollout {
+                id: 0,
+                t,
+                xs,
+                us: Vec::new(),
+            },
             cut: 3000,
             diagnosis,
             centre: 0.0,

@@ -273,6 +273,7 @@ pub(crate) fn rollout_on_grid<'a>(
         id,
         t: grid.t,
         xs: grid.xs,
+        us: Vec::new(),
     };
     Ok((rollout, source))
 }
