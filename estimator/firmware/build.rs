@@ -54,6 +54,39 @@ fn table(src: &mut String, name: &str, path: &str) {
     writeln!(src, "];").unwrap();
 }
 
+/// `pub static {name}: [(u32, [[f32; 3]; {steps}]); n]` of driven
+/// rollouts: a `.bin` as [`read`]'s, with triples `(theta, theta_dot, u)`,
+/// `u` the torque held to the next measurement.
+fn driven_table(src: &mut String, name: &str, path: &str) {
+    println!("cargo:rerun-if-changed={path}");
+    let bytes = fs::read(path).unwrap_or_else(|e| panic!("read {path}: {e}"));
+    let mut words = bytes.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]);
+    let mut next = || words.next().unwrap_or_else(|| panic!("{path}: truncated"));
+    let count = u32::from_le_bytes(next()) as usize;
+    let steps = u32::from_le_bytes(next()) as usize;
+    assert!(count > 0 && steps > 0, "{path}: no rollouts");
+    writeln!(
+        src,
+        "/// Steps of each rollout of {path}.\npub const {name}_STEPS: usize = {steps};"
+    )
+    .unwrap();
+    writeln!(
+        src,
+        "/// `(rollout id, measurements and torques)` from {path}.\npub static {name}: [(u32, [[f32; 3]; {steps}]); {count}] = ["
+    )
+    .unwrap();
+    for _ in 0..count {
+        let id = u32::from_le_bytes(next());
+        write!(src, "({id}, [").unwrap();
+        for _ in 0..steps {
+            let [a, b, c] = [next(), next(), next()].map(f32::from_le_bytes);
+            write!(src, "[{a:?}, {b:?}, {c:?}], ").unwrap();
+        }
+        writeln!(src, "]),").unwrap();
+    }
+    writeln!(src, "];").unwrap();
+}
+
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("OUT_DIR"));
     fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
@@ -62,5 +95,6 @@ fn main() {
     let mut src = String::new();
     table(&mut src, "ROLLOUTS", "rollouts.bin");
     table(&mut src, "RIG_ROLLOUTS", "rig-rollouts.bin");
+    driven_table(&mut src, "DRIVEN_ROLLOUTS", "driven-rollouts.bin");
     fs::write(out.join("rollouts.rs"), src).expect("write rollouts.rs");
 }

@@ -10,7 +10,18 @@ fn shipped_blob_reads() {
     let bytes = shipped_blob();
     let m = Model::from_bytes(&bytes).unwrap();
     let b = m.blob();
-    assert_eq!(b.header, estimator::blob::Header::CURRENT);
+    // Made before format 12 (the torque's column), read as it is: a free
+    // model (its `B` slot zero).
+    use estimator::blob::{Header, OLDEST_READ_VERSION};
+    assert_eq!(b.header.version, OLDEST_READ_VERSION);
+    assert_eq!(
+        Header {
+            version: Header::CURRENT.version,
+            ..b.header
+        },
+        Header::CURRENT
+    );
+    assert!(!m.is_driven());
     assert_eq!(b.body.params[0].name, "length");
     assert!(b.body.filter.sigma_threshold > 0.0);
     // Rows of F for the parameters are the identity.

@@ -15,7 +15,8 @@ use std::process::Command;
 use estimator::{Estimator, Model, Trust};
 use host_tests::{rig_blob, root, shipped_blob};
 use trainer_core::bench::rig_window;
-use trainer_core::data::{states_f32, test_set};
+use trainer_core::data::{Physics, driven_test_set, states_f32, test_set};
+use trainer_core::physics::DriveKind;
 use trainer_core::protocol::{TEST_LENGTHS, TEST_PER_LENGTH};
 
 /// Steps per rollout in the firmware: whole test rollouts, the protocol's
@@ -79,14 +80,55 @@ fn rig_rollouts() -> Vec<(u32, Vec<[f32; 2]>)> {
     vec![(0, rig_window(RIG_STEPS, dt))]
 }
 
+/// The driven blob, which learned the torque's `B(q)` (`weights/README.md`).
+fn driven_blob() -> Vec<u8> {
+    std::fs::read(root().join("weights/pendulum-bilinear-driven.kkf")).unwrap()
+}
+
+/// The firmware's driven data: rollout `K` of each driven family (held
+/// steps, a sine, energy pumping) at 3.5 m from the driven test set of
+/// seed 0, as `(theta, theta_dot, u)` in `f32`.
+fn driven_rollouts() -> Vec<(u32, Vec<[f32; 3]>)> {
+    let kinds = [DriveKind::Steps, DriveKind::Sine, DriveKind::Energy];
+    let ds = driven_test_set(0, &[3.5], &kinds, Physics::PROTOCOL);
+    (0..kinds.len())
+        .map(|k| {
+            let r = &ds.rollouts[k * TEST_PER_LENGTH + K];
+            let rows = states_f32(&r.xs[..STEPS])
+                .iter()
+                .enumerate()
+                .map(|(j, x)| [x[0], x[1], r.u(j) as f32])
+                .collect();
+            (r.id, rows)
+        })
+        .collect()
+}
+
+/// `driven-rollouts.bin`: as [`encode`], with triples.
+fn encode_driven(rollouts: &[(u32, Vec<[f32; 3]>)]) -> Vec<u8> {
+    let steps = rollouts.first().map_or(0, |r| r.1.len());
+    let mut b = Vec::new();
+    b.extend((rollouts.len() as u32).to_le_bytes());
+    b.extend((steps as u32).to_le_bytes());
+    for (id, rows) in rollouts {
+        b.extend(id.to_le_bytes());
+        for r in rows {
+            for v in r {
+                b.extend(v.to_le_bytes());
+            }
+        }
+    }
+    b
+}
+
 #[test]
 fn firmware_rollouts_are_the_protocol_test_set_and_the_string() {
-    for (file, rollouts) in [
-        ("rollouts.bin", firmware_rollouts()),
-        ("rig-rollouts.bin", rig_rollouts()),
+    for (file, want) in [
+        ("rollouts.bin", encode(&firmware_rollouts())),
+        ("rig-rollouts.bin", encode(&rig_rollouts())),
+        ("driven-rollouts.bin", encode_driven(&driven_rollouts())),
     ] {
         let path = firmware_dir().join(file);
-        let want = encode(&rollouts);
         if std::env::var_os("KOOPMAN_BLESS").is_some() {
             std::fs::write(&path, &want).unwrap();
         }
@@ -219,10 +261,11 @@ fn firmware_in_qemu_matches_the_host() {
     );
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(lines.last().copied(), Some("done"), "{stdout}");
-    // Five test rollouts in two modes, then the string through the rig
-    // blob.
+    // Five test rollouts in two modes, the string through the rig blob,
+    // then three driven rollouts told their torques and not.
     assert!(
-        lines.iter().filter(|l| l.starts_with("rollout ")).count() == 10 + rig_rollouts().len(),
+        lines.iter().filter(|l| l.starts_with("rollout ")).count()
+            == 10 + rig_rollouts().len() + 2 * driven_rollouts().len(),
         "{stdout}"
     );
 
@@ -256,27 +299,63 @@ fn firmware_in_qemu_matches_the_host() {
     let rig_bytes = rig_blob();
     let rig = Model::from_bytes(&rig_bytes).unwrap();
     let rig_data = rig_rollouts();
-    let mut runs: Vec<(u32, &str, Estimator<'_>, &[[f32; 2]])> = Vec::new();
+    let driven_bytes = driven_blob();
+    let driven = Model::from_bytes(&driven_bytes).unwrap();
+    let driven_data: Vec<(u32, Vec<[f32; 2]>, Vec<f32>)> = driven_rollouts()
+        .into_iter()
+        .map(|(id, rows)| {
+            (
+                id,
+                rows.iter().map(|r| [r[0], r[1]]).collect(),
+                rows.iter().map(|r| r[2]).collect(),
+            )
+        })
+        .collect();
+    type Run<'a> = (
+        u32,
+        &'a str,
+        Estimator<'a>,
+        &'a [[f32; 2]],
+        Option<&'a [f32]>,
+    );
+    let mut runs: Vec<Run<'_>> = Vec::new();
     for (id, xs) in &rollouts {
         runs.push((
             *id,
             "scheduled",
             Estimator::new(&model).at_trained_gravity(),
             xs,
+            None,
         ));
         runs.push((
             *id,
             "recursive",
             Estimator::without_schedule(&model).at_trained_gravity(),
             xs,
+            None,
         ));
     }
     for (id, xs) in &rig_data {
-        runs.push((*id, "rig", Estimator::new(&rig).at_trained_gravity(), xs));
+        runs.push((
+            *id,
+            "rig",
+            Estimator::new(&rig).at_trained_gravity(),
+            xs,
+            None,
+        ));
     }
-    for (id, mode, mut est, xs) in runs {
-        for x in xs {
-            let h = est.step(x).unwrap();
+    for (id, xs, us) in &driven_data {
+        let est = || Estimator::new(&driven).at_trained_gravity();
+        runs.push((*id, "driven", est(), xs, Some(us)));
+        runs.push((*id, "undriven", est(), xs, None));
+    }
+    for (id, mode, mut est, xs, us) in runs {
+        for (k, x) in xs.iter().enumerate() {
+            let h = match (us, k.checked_sub(1)) {
+                (Some(us), Some(j)) => est.step_driven(x, us[j]).unwrap(),
+                (Some(_), None) => est.step_driven(x, 0.0).unwrap(),
+                (None, _) => est.step(x).unwrap(),
+            };
             let line = steps.next().expect("fewer step lines than measurements");
             let w: Vec<&str> = line.split_whitespace().collect();
             assert_eq!(w[1].parse::<u32>().unwrap(), id, "{line}");

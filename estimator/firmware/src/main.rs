@@ -43,6 +43,10 @@ mod rollouts {
 static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/pendulum.kkf"));
 /// ... and the rig blob (the bilinear family, the extended filter).
 static RIG_BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
+/// The bilinear blob that learned the torque's `B(q)` (driven rollouts).
+static DRIVEN_BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!(
+    "../../../weights/pendulum-bilinear-driven.kkf"
+));
 
 /// Measurements in the protocol's estimation window: updates `1..WINDOW`
 /// are timed apart from the later ones.
@@ -227,6 +231,9 @@ fn main() -> ! {
             .str(" (the same for the rig blob)")
             .send();
     }
+    if ok {
+        ok = run_driven(&mut line);
+    }
     line.str(if ok { "done" } else { "failed" }).send();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
@@ -325,6 +332,38 @@ fn run_rig(line: &mut Line) -> bool {
         .all(|(id, xs)| filter(line, &model, *id, "rig", est.clone(), xs))
 }
 
+/// The driven rollouts through the blob with `B(q)`: each told its
+/// torques (`driven`), then the same measurements without them
+/// (`undriven`), so that the two steps' costs compare.
+#[inline(never)]
+fn run_driven(line: &mut Line) -> bool {
+    let model = match Model::from_bytes(&DRIVEN_BLOB.0) {
+        Ok(m) => m,
+        Err(e) => {
+            line.str("error: driven blob refused: ")
+                .str(e.message())
+                .send();
+            return false;
+        }
+    };
+    let est = Estimator::new(&model).at_trained_gravity();
+    for (id, rows) in &rollouts::DRIVEN_ROLLOUTS {
+        let mut xs = [[0.0f32; 2]; rollouts::DRIVEN_ROLLOUTS_STEPS];
+        let mut us = [0.0f32; rollouts::DRIVEN_ROLLOUTS_STEPS];
+        for ((x, u), r) in xs.iter_mut().zip(us.iter_mut()).zip(rows) {
+            *x = [r[0], r[1]];
+            *u = r[2];
+        }
+        if !filter_driven(line, &model, *id, "driven", est.clone(), &xs, Some(&us)) {
+            return false;
+        }
+        if !filter_driven(line, &model, *id, "undriven", est.clone(), &xs, None) {
+            return false;
+        }
+    }
+    true
+}
+
 /// Filters one rollout from `est` reset, printing every step's outputs
 /// and a summary with the instructions spent; `false` if a step was
 /// refused.
@@ -334,8 +373,23 @@ fn filter(
     model: &Model,
     id: u32,
     mode: &str,
+    est: Estimator,
+    xs: &[[f32; 2]],
+) -> bool {
+    filter_driven(line, model, id, mode, est, xs, None)
+}
+
+/// [`filter`] with the torque held before each measurement (`us[k - 1]`
+/// before `xs[k]`; none: free steps).
+#[inline(never)]
+fn filter_driven(
+    line: &mut Line,
+    model: &Model,
+    id: u32,
+    mode: &str,
     mut est: Estimator,
     xs: &[[f32; 2]],
+    us: Option<&[f32]>,
 ) -> bool {
     est.reset();
     // Ticks of the updates in the protocol's window (t = 1..=63, the gain
@@ -345,10 +399,18 @@ fn filter(
     let mut last = None;
     // The most stack one step used, below this frame.
     let mut step_stack = 0usize;
-    for x in xs {
+    for (k, x) in xs.iter().enumerate() {
+        let u = match (us, k.checked_sub(1)) {
+            (Some(us), Some(j)) => us.get(j).copied().unwrap_or(0.0),
+            _ => 0.0,
+        };
         let top = paint_stack(STEP_PAINT);
         let before = SYST::get_current();
-        let out = est.step(x);
+        let out = if us.is_some() {
+            est.step_driven(x, u)
+        } else {
+            est.step(x)
+        };
         let after = SYST::get_current();
         step_stack = step_stack.max(stack_used(top, STEP_PAINT));
         let out = match out {

@@ -315,6 +315,7 @@ impl<'m> Estimator<'m> {
     /// assert_eq!(est.mean(), est.clone().mean());
     /// # Ok::<(), estimator::Error>(())
     /// ```
+    #[inline]
     pub fn step(&mut self, raw: &State) -> Result<StepOutput, Error> {
         self.step_driven(raw, 0.0)
     }

@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::data::{Rollout, model_steps};
 use crate::physics::{Rig, RigPhysics};
-use crate::protocol::WINDOW;
+use crate::protocol::{MASS, WINDOW};
 
 /// Longest RK4 substep, s.
 pub const SUBSTEP: f64 = 0.01;
@@ -168,16 +168,26 @@ pub struct Peer {
     nis_n: usize,
 }
 
-/// `[theta, omega, a, c]`'s time derivative.
-fn field(x: &[f64; STATE_DIM]) -> [f64; STATE_DIM] {
-    [x[1], -x[2] * x[0].sin() - x[3] * x[1], 0.0, 0.0, 0.0]
+/// `[theta, omega, a, c]`'s time derivative under the torque term `ku`:
+/// `omega' = -a sin(theta) - c omega + ku a^2`, the torque's `u / I` with
+/// `I` the rig's inertia, which for a string and a rod alike goes as
+/// `1 / a^2` (`ku = u / (I a^2)`, a constant of the rig; 0 when free).
+fn field(x: &[f64; STATE_DIM], ku: f64) -> [f64; STATE_DIM] {
+    let mut omega_dot = -x[2] * x[0].sin() - x[3] * x[1];
+    if ku != 0.0 {
+        omega_dot += ku * x[2] * x[2];
+    }
+    [x[1], omega_dot, 0.0, 0.0, 0.0]
 }
 
 /// `A(x) = d field / dx`.
-fn jacobian(x: &[f64; STATE_DIM]) -> Mat {
+fn jacobian(x: &[f64; STATE_DIM], ku: f64) -> Mat {
     let mut a = [[0.0; STATE_DIM]; STATE_DIM];
     a[0][1] = 1.0;
     a[1] = [-x[2] * x[0].cos(), -x[3], -x[0].sin(), -x[1], 0.0];
+    if ku != 0.0 {
+        a[1][2] += 2.0 * ku * x[2];
+    }
     a
 }
 
@@ -192,18 +202,18 @@ fn transpose(a: &Mat) -> Mat {
 }
 
 /// The joint derivative of the state and the variational `Phi`.
-fn joint(x: &[f64; STATE_DIM], phi: &Mat) -> ([f64; STATE_DIM], Mat) {
-    (field(x), mul(&jacobian(x), phi))
+fn joint(x: &[f64; STATE_DIM], phi: &Mat, ku: f64) -> ([f64; STATE_DIM], Mat) {
+    (field(x, ku), mul(&jacobian(x, ku), phi))
 }
 
 /// One RK4 substep of `h` of the state and `Phi` together.
-fn rk4(x: &[f64; STATE_DIM], phi: &Mat, h: f64) -> ([f64; STATE_DIM], Mat) {
+fn rk4(x: &[f64; STATE_DIM], phi: &Mat, h: f64, ku: f64) -> ([f64; STATE_DIM], Mat) {
     let at = |dx: &[f64; STATE_DIM], dphi: &Mat, s: f64| {
         let x: [f64; STATE_DIM] = std::array::from_fn(|i| x[i] + s * dx[i]);
         let phi: Mat = std::array::from_fn(|i| std::array::from_fn(|j| phi[i][j] + s * dphi[i][j]));
-        joint(&x, &phi)
+        joint(&x, &phi, ku)
     };
-    let k1 = joint(x, phi);
+    let k1 = joint(x, phi, ku);
     let k2 = at(&k1.0, &k1.1, h / 2.0);
     let k3 = at(&k2.0, &k2.1, h / 2.0);
     let k4 = at(&k3.0, &k3.1, h);
@@ -216,14 +226,15 @@ fn rk4(x: &[f64; STATE_DIM], phi: &Mat, h: f64) -> ([f64; STATE_DIM], Mat) {
     )
 }
 
-/// The state after `dt` and the Jacobian of that map (RK4 of the
-/// variational equations, in substeps of at most [`SUBSTEP`]).
-fn propagate(x: &[f64; STATE_DIM], dt: f64) -> ([f64; STATE_DIM], Mat) {
+/// The state after `dt` under the torque term `ku` ([`field`]) and the
+/// Jacobian of that map (RK4 of the variational equations, in substeps of
+/// at most [`SUBSTEP`]).
+fn propagate(x: &[f64; STATE_DIM], dt: f64, ku: f64) -> ([f64; STATE_DIM], Mat) {
     let n = (dt / SUBSTEP).ceil().max(1.0) as usize;
     let h = dt / n as f64;
     let identity: Mat =
         std::array::from_fn(|i| std::array::from_fn(|j| f64::from(u8::from(i == j))));
-    (0..n).fold((*x, identity), |(x, phi), _| rk4(&x, &phi, h))
+    (0..n).fold((*x, identity), |(x, phi), _| rk4(&x, &phi, h, ku))
 }
 
 /// The 99% quantile of the mean of `n` NIS values of 2 degrees of freedom
@@ -251,7 +262,20 @@ impl Peer {
 
     /// Predicts over `dt` seconds: `x = f(x)`, `P = Phi P Phi^T + Q dt`.
     pub fn predict(&mut self, dt: f64) {
-        let (x, phi) = propagate(&self.x, dt);
+        self.predict_driven(dt, 0.0);
+    }
+
+    /// [`Peer::predict`] under the torque `u` (N m, mass [`MASS`]) held
+    /// over the `dt` seconds: the known input of the ODE.
+    pub fn predict_driven(&mut self, dt: f64, u: f64) {
+        // u / (m I(a)) with I going as 1 / a^2: its value at a = 1.
+        let cfg = &self.cfg;
+        let ku = if u == 0.0 {
+            0.0
+        } else {
+            u / (MASS * cfg.rig.inertia_per_mass(cfg.rig.length(cfg.g, 1.0)))
+        };
+        let (x, phi) = propagate(&self.x, dt, ku);
         let mut p = mul(&mul(&phi, &self.p), &transpose(&phi));
         for (i, q) in self.cfg.q.iter().enumerate() {
             p[i][i] += q * dt;
@@ -396,8 +420,9 @@ pub fn track_each(
     peer.update(r.xs[0]);
     each(1, peer);
     for (k, (x, &s)) in r.xs[1..].iter().zip(&steps).enumerate() {
+        // The torque held since the sample before (`k` indexes it).
         for _ in 0..s {
-            peer.predict(dt);
+            peer.predict_driven(dt, r.u(k));
         }
         peer.update(*x);
         each(k + 2, peer);

@@ -35,7 +35,7 @@ pub fn run(a: Args) -> Result<()> {
     let current = current_format(&bytes, &a.blob)?;
     if let Some(version) = current.upgraded_from {
         eprintln!(
-            "{}: format {version}, upgraded to {FORMAT_VERSION} (model, filter and schedule unchanged; before format 8, a rod's)",
+            "{}: format {version}, upgraded to {FORMAT_VERSION} (a bilinear blob to 11: no torque columns, B = 0; model, filter and schedule unchanged; before format 8, a rod's)",
             a.blob.display()
         );
     }

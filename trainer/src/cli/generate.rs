@@ -32,6 +32,12 @@ pub struct Args {
     /// e.g. viscous:0.1 or offset:0.05.
     #[arg(long, value_parser = Effect::parse)]
     effect: Vec<Effect>,
+    /// Drive both sets by torques of these families (free, steps, sine,
+    /// energy; `|u| <= 2 N m`): the training set's rollouts take turns, the
+    /// test set has the protocol's 10 rollouts per length for each family.
+    /// The CSVs get the `u` column (the torque held to the next row, N m).
+    #[arg(long, value_delimiter = ',', value_parser = trainer_core::physics::DriveKind::parse)]
+    drives: Option<Vec<trainer_core::physics::DriveKind>>,
     /// Instead, write lab-like recordings of this seed (one per case of
     /// `trainer_core::data::lab`: angle only, `t,theta` in radians, with
     /// noise, quantisation and their own stamps) and `lab.json`, their
@@ -117,16 +123,37 @@ pub fn run(a: Args) -> Result<()> {
         rig: a.rig,
         ..data::Physics::PROTOCOL
     };
-    let train = data::training_set_with(
-        a.seed,
-        &a.lengths,
-        a.rollouts,
-        &a.effect,
-        physics,
-        trainer_core::protocol::THETA0,
-        None,
-    );
-    let test = data::test_set_with(a.seed, &TEST_LENGTHS, &a.effect, physics);
+    let (train, test) = match &a.drives {
+        Some(drives) => {
+            anyhow::ensure!(
+                a.effect.is_empty(),
+                "--drives: a driven set has no undeclared effect"
+            );
+            (
+                data::driven_training_set(
+                    a.seed,
+                    &a.lengths,
+                    a.rollouts,
+                    drives,
+                    physics,
+                    trainer_core::protocol::THETA0,
+                ),
+                data::driven_test_set(a.seed, &TEST_LENGTHS, drives, physics),
+            )
+        }
+        None => (
+            data::training_set_with(
+                a.seed,
+                &a.lengths,
+                a.rollouts,
+                &a.effect,
+                physics,
+                trainer_core::protocol::THETA0,
+                None,
+            ),
+            data::test_set_with(a.seed, &TEST_LENGTHS, &a.effect, physics),
+        ),
+    };
     let p = data::write(&train, &a.out, "train")?;
     let q = data::write(&test, &a.out, "test")?;
     super::say(&format!(

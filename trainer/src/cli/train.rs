@@ -69,6 +69,11 @@ pub struct Args {
     /// own length).
     #[arg(long)]
     rollouts: Option<usize>,
+    /// Drive the training rollouts by torques of these families, taking
+    /// turns (free, steps, sine, energy; `|u| <= 2 N m`): the model learns
+    /// `B` with `K` (the paper's actions). Default: free rollouts, no `B`.
+    #[arg(long, value_delimiter = ',', value_parser = trainer_core::physics::DriveKind::parse)]
+    drives: Option<Vec<trainer_core::physics::DriveKind>>,
     /// Draw each training rollout's length uniformly between the smallest
     /// and the largest of --lengths (as many rollouts as the grid would
     /// give) instead of taking them as a grid.
@@ -149,6 +154,13 @@ impl Args {
         if self.draw_lengths {
             cfg.draw_lengths = true;
         }
+        if let Some(v) = &self.drives {
+            cfg.drives = v.clone();
+        }
+        anyhow::ensure!(
+            cfg.drives.is_empty() || cfg.lab.is_none(),
+            "--drives is for the protocol's rollouts, not lab-like recordings"
+        );
         if let Some(v) = self.hidden {
             cfg.hidden = v;
         }

@@ -62,14 +62,18 @@ fn mlp_values(enc: &Mlp, dec: &Mlp) -> (Vec<f32>, Layout) {
 }
 
 impl BlobParts {
-    /// From the MLPs and `F` (row-major AUG x AUG), in the arena's order
-    /// (see `estimator::blob`): encoder layers, decoder layers (weight then
-    /// bias each), `F`, `B` (zero: no input is modelled yet). No gain
-    /// schedule: see [`BlobParts::set_schedule`].
-    pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32]) -> Self {
+    /// From the MLPs, `F` (row-major AUG x AUG) and `B` (AUG x 1; its
+    /// parameter rows zero), in the arena's order (see `estimator::blob`):
+    /// encoder layers, decoder layers (weight then bias each), `F`, `B`.
+    /// No gain schedule: see [`BlobParts::set_schedule`].
+    pub fn new(enc: &Mlp, dec: &Mlp, f: &[f32], b: &[f32]) -> Self {
         let (mut arena, layout) = mlp_values(enc, dec);
         arena.extend_from_slice(f);
-        arena.extend([0.0; AUG_DIM * INPUT_DIM]);
+        let mut torque = [0.0f32; AUG_DIM * INPUT_DIM];
+        for (d, v) in torque.iter_mut().zip(b).take(estimator::LATENT_DIM) {
+            *d = *v;
+        }
+        arena.extend(torque);
         BlobParts {
             arena: le_bytes(&arena),
             family: Family::Linear,
@@ -79,10 +83,12 @@ impl BlobParts {
 
     /// The bilinear family's arena (see `estimator::blob`, "The bilinear
     /// arena"): encoder and decoder layers, then `F_0, F_1, F_2, F_11`
-    /// (`blocks`, each row-major).
-    pub fn bilinear(enc: &Mlp, dec: &Mlp, blocks: &[f32]) -> Self {
+    /// (`blocks`, each row-major), then `B_0, B_1, B_2, B_11` (`torque`,
+    /// each a latent column; zero for a free model).
+    pub fn bilinear(enc: &Mlp, dec: &Mlp, blocks: &[f32], torque: &[f32]) -> Self {
         let (mut arena, layout) = mlp_values(enc, dec);
         arena.extend_from_slice(blocks);
+        arena.extend_from_slice(torque);
         BlobParts {
             arena: le_bytes(&arena),
             family: Family::Bilinear,
@@ -211,7 +217,7 @@ mod tests {
                 _ => (k as f32 * 0.37).sin(),
             })
             .collect();
-        let parts = BlobParts::new(&enc, &dec, &f);
+        let parts = BlobParts::new(&enc, &dec, &f, &[]);
         let cfg = TrainConfig::default();
         let norm = Norm {
             mu: [0.5, -0.25],
@@ -269,7 +275,7 @@ mod tests {
         // A length that would drift (F[16][16] != 1) is refused.
         let mut drifting = f.clone();
         drifting[LATENT_DIM * AUG_DIM + LATENT_DIM] = 0.99;
-        let parts = BlobParts::new(&enc, &dec, &drifting);
+        let parts = BlobParts::new(&enc, &dec, &drifting, &[]);
         let blob = parts.blob(&norm, &cfg, filter, params, trust);
         let bytes = blob_bytes(&blob).unwrap();
         assert_eq!(

@@ -378,15 +378,18 @@ impl Prepared {
             let model: Bilinear = load_model(&paths, &cfg, &device)?;
             // A lab run's dynamics are fitted on its noise-free twin.
             let fit = dynamics_data(&cfg)?;
-            let (blocks, residual_var) = global_bilinear(&model, &fit, &state.norm, &cfg)?;
+            let (blocks, torque, residual_var) = global_bilinear(&model, &fit, &state.norm, &cfg)?;
             (
-                BlobParts::bilinear(&model.enc, &model.dec, &blocks),
+                BlobParts::bilinear(&model.enc, &model.dec, &blocks, &torque),
                 residual_var,
             )
         } else {
             let model: Klm = load_model(&paths, &cfg, &device)?;
-            let (f, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
-            (BlobParts::new(&model.enc, &model.dec, &f), residual_var)
+            let (f, torque, residual_var) = global_koopman(&model, &ds, &state.norm, &cfg)?;
+            (
+                BlobParts::new(&model.enc, &model.dec, &f, &torque),
+                residual_var,
+            )
         };
         Ok(Prepared {
             cfg,

@@ -14,28 +14,35 @@ use crate::learn::model::{Klm, fit_koopman};
 use crate::learn::run::{Norm, device};
 use nalgebra::{DMatrix, DVector};
 
-/// Every transition of `ds`, encoded: `y` `[B, T, latent]` and the
-/// parameters' coordinates `[B, 2]`.
+/// Every transition of `ds`, encoded: `y` `[B, T, latent]`, the
+/// parameters' coordinates `[B, 2]` and, for a driven set, the torques
+/// `[B, T]`.
 fn encoded(
     enc: &crate::learn::model::Mlp,
     ds: &Dataset,
     norm: &Norm,
     cfg: &TrainConfig,
-) -> Result<(Tensor<3>, Tensor<2>)> {
+) -> Result<(Tensor<3>, Tensor<2>, Option<Tensor<2>>)> {
     let device = device();
     let t = ds.rollouts.first().context("empty data set")?.xs.len();
+    let driven = ds.rollouts.iter().any(|r| !r.us.is_empty());
     let mut x = Vec::new();
     let mut p = Vec::new();
+    let mut u = Vec::new();
     for r in &ds.rollouts {
         anyhow::ensure!(r.xs.len() == t, "rollouts of unequal length");
         x.extend(r.xs.iter().flat_map(|&v| norm.apply(v)));
         let m = ds.meta(r.id).context("rollout without truth")?;
         p.extend(cfg.coordinates(m)?);
+        if driven {
+            u.extend((0..t).map(|k| r.u(k) as f32));
+        }
     }
     let b = ds.rollouts.len();
     let x = Tensor::<3>::from_data(TensorData::new(x, [b, t, 2]), &device);
     let p = Tensor::<2>::from_data(TensorData::new(p, [b, 2]), &device);
-    Ok((enc.forward(x, cfg.activation).detach(), p))
+    let u = driven.then(|| Tensor::<2>::from_data(TensorData::new(u, [b, t]), &device));
+    Ok((enc.forward(x, cfg.activation).detach(), p, u))
 }
 
 /// The values of a tensor.
@@ -58,9 +65,10 @@ fn residual_variance(res: Tensor<3>) -> Result<[f32; LATENT_DIM]> {
 }
 
 /// The bilinear family's `F_0, F_1, F_2, F_11` (each row-major, in that
-/// order, as the blob stores them) fitted over every transition of `ds`
-/// with the trained encoder, and the one-step latent residual variance
-/// per dimension.
+/// order, as the blob stores them) and `B_0 .. B_11` (each a latent column;
+/// zero for a free set) fitted over every transition of `ds` with the
+/// trained encoder, and the one-step latent residual variance per
+/// dimension.
 ///
 /// In f64 (normal equations accumulated over every transition, solved by
 /// Cholesky), not by the training's f32 elimination: the columns `y`,
@@ -74,20 +82,27 @@ pub fn global_bilinear(
     ds: &Dataset,
     norm: &Norm,
     cfg: &TrainConfig,
-) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
-    let (y, q) = encoded(&model.enc, ds, norm, cfg)?;
+) -> Result<(Vec<f32>, Vec<f32>, [f32; LATENT_DIM])> {
+    let (y, q, u) = encoded(&model.enc, ds, norm, cfg)?;
     let [b, t, l] = y.dims();
     let y = values(y)?;
     let q = values(q)?;
-    let n = BLOCKS * l;
+    let u = u.map(values).transpose()?;
+    let driven = u.is_some();
+    let n = BLOCKS * l + if driven { BLOCKS } else { 0 };
     let latent = |r: usize, k: usize| &y[(r * t + k) * l..(r * t + k + 1) * l];
     let columns = |r: usize, k: usize| -> Vec<f64> {
         let (q1, q2) = (f64::from(q[2 * r]), f64::from(q[2 * r + 1]));
         let scales = [1.0, q1, q2, q1 * q1];
-        scales
+        let mut g: Vec<f64> = scales
             .iter()
             .flat_map(|s| latent(r, k).iter().map(move |v| s * f64::from(*v)))
-            .collect()
+            .collect();
+        if let Some(u) = &u {
+            let uk = f64::from(u[r * t + k]);
+            g.extend(scales.iter().map(|s| s * uk));
+        }
+        g
     };
     let mut gtg = DMatrix::<f64>::zeros(n, n);
     let mut gty = DMatrix::<f64>::zeros(n, l);
@@ -124,7 +139,7 @@ pub fn global_bilinear(
         *d = (*s as f32).max(1e-10);
     }
     // F_k row-major: F_k[i][j] = F_k^T[j][i] = kt[k l + j, i].
-    let mut blocks = Vec::with_capacity(n * l);
+    let mut blocks = Vec::with_capacity(BLOCKS * l * l);
     for blk in 0..BLOCKS {
         for i in 0..l {
             for j in 0..l {
@@ -132,26 +147,46 @@ pub fn global_bilinear(
             }
         }
     }
-    Ok((blocks, residual_var))
+    // B_k: its row of K^T, kt[4 l + k, i] (zero when free).
+    let mut torque = vec![0.0f32; BLOCKS * l];
+    if driven {
+        for blk in 0..BLOCKS {
+            for i in 0..l {
+                torque[blk * l + i] = kt[(BLOCKS * l + blk, i)] as f32;
+            }
+        }
+    }
+    Ok((blocks, torque, residual_var))
 }
 
-/// `F` (row-major, AUG x AUG) fitted over every transition of `ds`, and
-/// the one-step latent residual variance per dimension.
+/// `F` (row-major, AUG x AUG) and `B` (AUG x 1; zero for a free set, and
+/// in its parameter rows) fitted together over every transition of `ds`,
+/// and the one-step latent residual variance per dimension.
 pub fn global_koopman(
     model: &Klm,
     ds: &Dataset,
     norm: &Norm,
     cfg: &TrainConfig,
-) -> Result<(Vec<f32>, [f32; LATENT_DIM])> {
-    let (y, p) = encoded(&model.enc, ds, norm, cfg)?;
+) -> Result<(Vec<f32>, Vec<f32>, [f32; LATENT_DIM])> {
+    let (y, p, u) = encoded(&model.enc, ds, norm, cfg)?;
     let [b, t, l] = y.dims();
-    let k = fit_koopman(y.clone(), Some(p.clone()), cfg.ridge);
+    let k = fit_koopman(y.clone(), Some(p.clone()), u.clone(), cfg.ridge);
     let kct = k.ct.context("the KLM's K has a parameter block")?;
     let at = values(k.at.clone())?;
     let ct = values(kct.clone())?;
+    let mut torque = vec![0.0f32; AUG_DIM];
+    if let Some(bt) = &k.bt {
+        for (d, v) in torque.iter_mut().zip(values(bt.clone())?) {
+            *d = v;
+        }
+    }
     // One-step residual.
     let g_y = y.clone().slice([0..b, 0..t - 1, 0..l]);
-    let pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(kct).unsqueeze_dim::<3>(1);
+    let mut pred = g_y.matmul(k.at.unsqueeze_dim::<3>(0)) + p.matmul(kct).unsqueeze_dim::<3>(1);
+    if let (Some(bt), Some(u)) = (k.bt, u) {
+        let us = u.slice([0..b, 0..t - 1]).reshape([b, t - 1, 1]);
+        pred = pred + us.matmul(bt.unsqueeze_dim::<3>(0));
+    }
     let residual_var = residual_variance(y.slice([0..b, 1..t, 0..l]) - pred)?;
     let mut f = vec![0.0f32; AUG_DIM * AUG_DIM];
     for i in 0..l {
@@ -166,5 +201,5 @@ pub fn global_koopman(
     for k in l..AUG_DIM {
         f[k * AUG_DIM + k] = 1.0;
     }
-    Ok((f, residual_var))
+    Ok((f, torque, residual_var))
 }

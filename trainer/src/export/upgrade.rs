@@ -11,7 +11,7 @@ use std::path::Path;
 use anyhow::Result;
 use estimator::blob::{
     Activation, Blob, Body, CRC, Envelope, F32s, FORMAT_VERSION, Family, FilterSpec, Header,
-    ParamSpec, TrustSpec,
+    OLDEST_READ_VERSION, ParamSpec, TrustSpec,
 };
 use estimator::{PARAM_DIM, Rig, STATE_DIM};
 use serde::Deserialize;
@@ -237,9 +237,14 @@ pub fn current_format(bytes: &[u8], path: &Path) -> Result<Current> {
             });
         }
     };
-    // The old header's widths (a narrow blob stays narrow), this format.
+    // The old header's widths (a narrow blob stays narrow), this format;
+    // a bilinear arena, which has no torque columns, format 11 (B = 0).
+    let version_now = match body.family {
+        Family::Bilinear => OLDEST_READ_VERSION,
+        Family::Linear => FORMAT_VERSION,
+    };
     let header = Header {
-        version: FORMAT_VERSION,
+        version: version_now,
         ..header.unwrap_or(Header::CURRENT)
     };
     Ok(Current {
@@ -362,6 +367,10 @@ mod tests {
     /// writes before it is calibrated again.
     fn unchecked(bytes: &[u8]) -> Vec<u8> {
         let mut b = Blob::from_bytes(bytes).unwrap();
+        // A linear blob upgrades to this format (a bilinear one to 11).
+        if b.body.family == Family::Linear {
+            b.header.version = FORMAT_VERSION;
+        }
         b.body.trust.max_nis = f32::MAX;
         b.body.trust.nis_law = [0.0; 2];
         b.body.trust.max_rate_mismatch = f32::MAX;

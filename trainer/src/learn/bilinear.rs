@@ -36,26 +36,54 @@ pub struct Bilinear {
     pub dec: Mlp,
 }
 
-/// `F_k^T`, `[latent, latent]` each, in the order `F_0, F_1, F_2, F_11`:
-/// `y_{t+1} = y_t F(q)^T`.
+/// `F_k^T`, `[latent, latent]` each, in the order `F_0, F_1, F_2, F_11`,
+/// and the torque's rows `B_k^T`, `[1, latent]` each in the same order:
+/// `y_{t+1} = y_t F(q)^T + u_t b(q)^T`, `b(q) = B_0 + q_1 B_1 + q_2 B_2 +
+/// q_1^2 B_11` (a rod's torque moves it by `3 u / (m L^2)`, which `q_1`,
+/// affine in `1 / L`, reaches at second order).
 pub struct BilinearKoopman {
     /// The transposed blocks.
     pub ft: [Tensor<2>; BLOCKS],
+    /// The torque's rows; `None` for a free set.
+    pub bt: Option<[Tensor<2>; BLOCKS]>,
 }
 
-/// The regressors of each transition: `[y, q_1 y, q_2 y, q_1^2 y]`;
-/// `y` is `[N, latent]`, `q` `[N, 2]`.
-fn columns(y: Tensor<2>, q: Tensor<2>) -> Tensor<2> {
+/// The parameters' four scales of a transition, `[1, q_1, q_2, q_1^2]`,
+/// each `[N, 1]`.
+fn scales(q: Tensor<2>) -> [Tensor<2>; BLOCKS] {
     let [n, _] = q.dims();
     let q1 = q.clone().slice([0..n, 0..1]);
     let q2 = q.slice([0..n, 1..2]);
     let q11 = q1.clone() * q1.clone();
-    Tensor::cat(vec![y.clone(), y.clone() * q1, y.clone() * q2, y * q11], 1)
+    [q1.ones_like(), q1, q2, q11]
 }
 
-/// Fits `F_0 .. F_11` by ridge least squares over every transition of the
-/// batch: `y` is `[B, T, latent]`, `q` `[B, 2]`.
-pub fn fit_bilinear(y: Tensor<3>, q: Tensor<2>, ridge: f64) -> BilinearKoopman {
+/// The regressors of each transition: `[y, q_1 y, q_2 y, q_1^2 y]`, then,
+/// driven, `[u, q_1 u, q_2 u, q_1^2 u]`; `y` is `[N, latent]`, `q`
+/// `[N, 2]`, `u` `[N, 1]`.
+fn columns(y: Tensor<2>, q: Tensor<2>, u: Option<Tensor<2>>) -> Tensor<2> {
+    let [_, q1, q2, q11] = scales(q);
+    let mut cols = vec![
+        y.clone(),
+        y.clone() * q1.clone(),
+        y.clone() * q2.clone(),
+        y * q11.clone(),
+    ];
+    if let Some(u) = u {
+        cols.extend([u.clone(), u.clone() * q1, u.clone() * q2, u * q11]);
+    }
+    Tensor::cat(cols, 1)
+}
+
+/// Fits `F_0 .. F_11` (and, driven, `B_0 .. B_11`) by ridge least squares
+/// over every transition of the batch: `y` is `[B, T, latent]`, `q`
+/// `[B, 2]`, `u` `[B, T]`.
+pub fn fit_bilinear(
+    y: Tensor<3>,
+    q: Tensor<2>,
+    u: Option<Tensor<2>>,
+    ridge: f64,
+) -> BilinearKoopman {
     let [b, t, l] = y.dims();
     let [_, np] = q.dims();
     let g_y = y
@@ -67,9 +95,13 @@ pub fn fit_bilinear(y: Tensor<3>, q: Tensor<2>, ridge: f64) -> BilinearKoopman {
         .expand([b, t - 1, np])
         .reshape([b * (t - 1), np]);
     let target = y.slice([0..b, 1..t, 0..l]).reshape([b * (t - 1), l]);
-    let kt = lstsq::ridge(columns(g_y, g_q), target, ridge); // [4 l, l]
+    let driven = u.is_some();
+    let g_u = u.map(crate::learn::model::torque_column);
+    let kt = lstsq::ridge(columns(g_y, g_q, g_u), target, ridge); // [4 l (+ 4), l]
+    let at = BLOCKS * l;
     BilinearKoopman {
         ft: std::array::from_fn(|k| kt.clone().slice([k * l..(k + 1) * l, 0..l])),
+        bt: driven.then(|| std::array::from_fn(|k| kt.clone().slice([at + k..at + k + 1, 0..l]))),
     }
 }
 
@@ -86,14 +118,46 @@ impl BilinearKoopman {
     }
 }
 
-/// Rolls `y_0` (`[B, latent]`) forward `steps` times at the batch's `q`;
-/// returns `[B, steps, latent]`.
-pub fn rollout(k: &BilinearKoopman, y0: Tensor<2>, q: Tensor<2>, steps: usize) -> Tensor<3> {
+impl BilinearKoopman {
+    /// `b(q)^T` per batch element, `[B, 1, latent]`; `None` when free.
+    pub fn bq(&self, q: Tensor<2>) -> Option<Tensor<3>> {
+        let bt = self.bt.as_ref()?;
+        let [b, _] = q.dims();
+        let [_, l] = bt[0].dims();
+        let s = scales(q);
+        let mut sum: Option<Tensor<2>> = None;
+        for (bk, sk) in bt.iter().zip(s) {
+            let term = sk.matmul(bk.clone()); // [B, l]
+            sum = Some(match sum {
+                Some(acc) => acc + term,
+                None => term,
+            });
+        }
+        sum.map(|v| v.reshape([b, 1, l]))
+    }
+}
+
+/// Rolls `y_0` (`[B, latent]`) forward `steps` times at the batch's `q`
+/// under the torques `u` (`[B, T]`, `T > steps`); returns
+/// `[B, steps, latent]`.
+pub fn rollout(
+    k: &BilinearKoopman,
+    y0: Tensor<2>,
+    q: Tensor<2>,
+    u: Option<Tensor<2>>,
+    steps: usize,
+) -> Tensor<3> {
+    let bq = k.bq(q.clone());
     let at = k.at(q);
     let mut y = y0.unsqueeze_dim::<3>(1); // [B, 1, l]
     let mut out = Vec::with_capacity(steps);
-    for _ in 0..steps {
+    for s in 0..steps {
         y = y.matmul(at.clone());
+        if let (Some(bq), Some(u)) = (&bq, &u) {
+            let [b, _] = u.dims();
+            let us = u.clone().slice([0..b, s..s + 1]).reshape([b, 1, 1]);
+            y = y + bq.clone() * us;
+        }
         out.push(y.clone());
     }
     Tensor::cat(out, 1)
@@ -106,12 +170,19 @@ impl Bilinear {
         &self,
         x: Tensor<3>,
         q: Tensor<2>,
+        u: Option<Tensor<2>>,
         act: Activation,
         ridge: f64,
         w_lin: f64,
     ) -> Losses {
         koopman_losses(&self.enc, &self.dec, x, act, w_lin, |y, y0, steps| {
-            rollout(&fit_bilinear(y, q.clone(), ridge), y0, q, steps)
+            rollout(
+                &fit_bilinear(y, q.clone(), u.clone(), ridge),
+                y0,
+                q,
+                u,
+                steps,
+            )
         })
     }
 }
@@ -127,8 +198,14 @@ impl Trainable for Bilinear {
     fn from_mlps(enc: Mlp, dec: Mlp) -> Option<Self> {
         Some(Bilinear { enc, dec })
     }
-    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
-        self.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin)
+    fn batch_losses(
+        &self,
+        x: Tensor<3>,
+        p: Tensor<2>,
+        u: Option<Tensor<2>>,
+        cfg: &TrainConfig,
+    ) -> Losses {
+        self.losses(x, p, u, cfg.activation, cfg.ridge, cfg.w_lin)
     }
 }
 
@@ -178,7 +255,7 @@ mod tests {
         }
         let y = Tensor::<3>::from_data(TensorData::new(ys.clone(), [b, t, l]), &device);
         let q = Tensor::<2>::from_data(TensorData::new(qs, [b, 2]), &device);
-        let k = fit_bilinear(y.clone(), q.clone(), 1e-9);
+        let k = fit_bilinear(y.clone(), q.clone(), None, 1e-9);
         let y0 = y.clone().slice([0..b, 0..t - 1, 0..l]);
         let pred = y0.matmul(k.at(q));
         let err: Vec<f32> = (pred - y.slice([0..b, 1..t, 0..l]))

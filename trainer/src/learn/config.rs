@@ -142,6 +142,11 @@ pub struct TrainConfig {
     /// choice and calibration still draw `lab` as it is.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub noise_free_training: bool,
+    /// The families of torques the training rollouts are driven by, taking
+    /// turns (`physics::drive`); empty: the protocol's free rollouts, and a
+    /// model without `B`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub drives: Vec<trainer_core::physics::DriveKind>,
 }
 
 impl Default for TrainConfig {
@@ -181,6 +186,7 @@ impl Default for TrainConfig {
             unevenness_floor: None,
             snapshots: Vec::new(),
             noise_free_training: false,
+            drives: Vec::new(),
         }
     }
 }

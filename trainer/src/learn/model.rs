@@ -83,8 +83,16 @@ pub trait Trainable: Module + Sized {
     fn from_mlps(_enc: Mlp, _dec: Mlp) -> Option<Self> {
         None
     }
-    /// The losses of one batch: windows `x` `[B, T, 2]`, parameters `p` `[B, 2]`.
-    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses;
+    /// The losses of one batch: windows `x` `[B, T, 2]`, parameters `p`
+    /// `[B, 2]`, and the torques `u` `[B, T]` held from each state to the
+    /// next (`None`: a free set).
+    fn batch_losses(
+        &self,
+        x: Tensor<3>,
+        p: Tensor<2>,
+        u: Option<Tensor<2>>,
+        cfg: &TrainConfig,
+    ) -> Losses;
 }
 
 impl Trainable for Klm {
@@ -95,9 +103,15 @@ impl Trainable for Klm {
     fn from_mlps(enc: Mlp, dec: Mlp) -> Option<Self> {
         Some(Klm { enc, dec })
     }
-    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
+    fn batch_losses(
+        &self,
+        x: Tensor<3>,
+        p: Tensor<2>,
+        u: Option<Tensor<2>>,
+        cfg: &TrainConfig,
+    ) -> Losses {
         let p = (cfg.model == ModelKind::Klm).then_some(p);
-        self.losses(x, p, cfg.activation, cfg.ridge, cfg.w_lin)
+        self.losses(x, p, u, cfg.activation, cfg.ridge, cfg.w_lin)
     }
 }
 
@@ -106,62 +120,99 @@ impl Trainable for Regressor {
     fn init(cfg: &TrainConfig, device: &Device) -> Self {
         Regressor::new(cfg.window, cfg.hidden, device)
     }
-    fn batch_losses(&self, x: Tensor<3>, p: Tensor<2>, cfg: &TrainConfig) -> Losses {
+    fn batch_losses(
+        &self,
+        x: Tensor<3>,
+        p: Tensor<2>,
+        _u: Option<Tensor<2>>,
+        cfg: &TrainConfig,
+    ) -> Losses {
         self.losses(x, p, cfg.activation)
     }
 }
 
-/// `[K^T]` split into its parts: `y_{t+1} = y_t A^T + p C^T`.
+/// `[K^T]` split into its parts: `y_{t+1} = y_t A^T + p C^T + u_t B^T`.
 pub struct Koopman {
     /// `A^T`, `[latent, latent]`.
     pub at: Tensor<2>,
     /// `C^T`, `[params, latent]`; `None` for the CBM, whose state has no `p`.
     pub ct: Option<Tensor<2>>,
+    /// `B^T`, `[1, latent]`, the torque's row; `None` for a free set.
+    pub bt: Option<Tensor<2>>,
 }
 
-/// Fits `y_{t+1} = [y_t, p] K^T` (or `y_t A^T` without `p`) by ridge least
-/// squares over every transition of the batch. `y` is `[B, T, latent]`, `p`
-/// is `[B, P]`.
-pub fn fit_koopman(y: Tensor<3>, p: Option<Tensor<2>>, ridge: f64) -> Koopman {
+/// The torques of the batch's transitions as a column: `u` `[B, T]`, its
+/// first `T - 1` (the last is held beyond the window), `[B (T - 1), 1]`.
+pub fn torque_column(u: Tensor<2>) -> Tensor<2> {
+    let [b, t] = u.dims();
+    u.slice([0..b, 0..t - 1]).reshape([b * (t - 1), 1])
+}
+
+/// Fits `y_{t+1} = [y_t, p, u_t] K^T` (or without `p`, or without `u`) by
+/// ridge least squares over every transition of the batch, `K` and `B`
+/// together as the paper does. `y` is `[B, T, latent]`, `p` `[B, P]`, `u`
+/// `[B, T]`.
+pub fn fit_koopman(
+    y: Tensor<3>,
+    p: Option<Tensor<2>>,
+    u: Option<Tensor<2>>,
+    ridge: f64,
+) -> Koopman {
     let [b, t, l] = y.dims();
     let g_y = y
         .clone()
         .slice([0..b, 0..t - 1, 0..l])
         .reshape([b * (t - 1), l]);
     let target = y.slice([0..b, 1..t, 0..l]).reshape([b * (t - 1), l]);
-    match p {
-        Some(p) => {
-            let [_, np] = p.dims();
-            let g_p = p
-                .unsqueeze_dim::<3>(1)
+    let np = p.as_ref().map_or(0, |p| p.dims()[1]);
+    let mut columns = vec![g_y];
+    if let Some(p) = p {
+        columns.push(
+            p.unsqueeze_dim::<3>(1)
                 .expand([b, t - 1, np])
-                .reshape([b * (t - 1), np]);
-            let g = Tensor::cat(vec![g_y, g_p], 1);
-            let kt = lstsq::ridge(g, target, ridge); // [l + np, l]
-            Koopman {
-                at: kt.clone().slice([0..l, 0..l]),
-                ct: Some(kt.slice([l..l + np, 0..l])),
-            }
-        }
-        None => Koopman {
-            at: lstsq::ridge(g_y, target, ridge),
-            ct: None,
-        },
+                .reshape([b * (t - 1), np]),
+        );
+    }
+    let driven = u.is_some();
+    if let Some(u) = u {
+        columns.push(torque_column(u));
+    }
+    let g = if columns.len() == 1 {
+        columns.remove(0)
+    } else {
+        Tensor::cat(columns, 1)
+    };
+    let kt = lstsq::ridge(g, target, ridge); // [l + np (+ 1), l]
+    Koopman {
+        at: kt.clone().slice([0..l, 0..l]),
+        ct: (np > 0).then(|| kt.clone().slice([l..l + np, 0..l])),
+        bt: driven.then(|| kt.slice([l + np..l + np + 1, 0..l])),
     }
 }
 
-/// Rolls `y_0` (`[B, latent]`) forward `steps` times; returns `[B, steps, latent]`.
-pub fn rollout(k: &Koopman, y0: Tensor<2>, p: Option<Tensor<2>>, steps: usize) -> Tensor<3> {
+/// Rolls `y_0` (`[B, latent]`) forward `steps` times under the torques `u`
+/// (`[B, T]`, `T > steps`); returns `[B, steps, latent]`.
+pub fn rollout(
+    k: &Koopman,
+    y0: Tensor<2>,
+    p: Option<Tensor<2>>,
+    u: Option<Tensor<2>>,
+    steps: usize,
+) -> Tensor<3> {
     let c = match (&k.ct, p) {
         (Some(ct), Some(p)) => Some(p.matmul(ct.clone())),
         _ => None,
     };
     let mut y = y0;
     let mut out = Vec::with_capacity(steps);
-    for _ in 0..steps {
+    for s in 0..steps {
         y = y.matmul(k.at.clone());
         if let Some(c) = &c {
             y = y + c.clone();
+        }
+        if let (Some(bt), Some(u)) = (&k.bt, &u) {
+            let [b, _] = u.dims();
+            y = y + u.clone().slice([0..b, s..s + 1]).matmul(bt.clone());
         }
         out.push(y.clone());
     }
@@ -170,17 +221,25 @@ pub fn rollout(k: &Koopman, y0: Tensor<2>, p: Option<Tensor<2>>, steps: usize) -
 
 impl Klm {
     /// Losses of one batch: `x` `[B, T, state]` normalised, `p` `[B, P]`
-    /// (`None` for the CBM: `K` over the latent alone).
+    /// (`None` for the CBM: `K` over the latent alone), `u` `[B, T]`
+    /// (`None`: free).
     pub fn losses(
         &self,
         x: Tensor<3>,
         p: Option<Tensor<2>>,
+        u: Option<Tensor<2>>,
         act: Activation,
         ridge: f64,
         w_lin: f64,
     ) -> Losses {
         koopman_losses(&self.enc, &self.dec, x, act, w_lin, |y, y0, steps| {
-            rollout(&fit_koopman(y, p.clone(), ridge), y0, p, steps)
+            rollout(
+                &fit_koopman(y, p.clone(), u.clone(), ridge),
+                y0,
+                p,
+                u,
+                steps,
+            )
         })
     }
 }

@@ -157,6 +157,26 @@ pub fn training_data(cfg: &TrainConfig) -> Result<Dataset> {
     } else {
         (cfg.lengths.clone(), cfg.rollouts_per_length)
     };
+    let physics = data::Physics {
+        rig: cfg.rig,
+        g: cfg.g,
+        dt: cfg.dt,
+        steps: cfg.rollout_steps,
+    };
+    if !cfg.drives.is_empty() {
+        anyhow::ensure!(
+            cfg.effect.is_none(),
+            "a driven training set has no undeclared effect (drop --effect or --drives)"
+        );
+        return Ok(data::driven_training_set(
+            cfg.seed,
+            &lengths,
+            per_length,
+            &cfg.drives,
+            physics,
+            cfg.theta0,
+        ));
+    }
     Ok(data::training_set_with(
         cfg.seed,
         &lengths,

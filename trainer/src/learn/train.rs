@@ -42,6 +42,8 @@ pub struct Batcher {
     ps: Vec<[f32; 2]>,
     /// Rollout indices per length, for stratified batches.
     strata: Vec<Vec<usize>>,
+    /// `[rollout][t] -> torque held to t + 1`, N m; empty for a free set.
+    us: Vec<Vec<f32>>,
 }
 
 impl Batcher {
@@ -52,6 +54,15 @@ impl Batcher {
         let mut ps = Vec::new();
         let mut lengths: Vec<f64> = Vec::new();
         let mut strata: Vec<Vec<usize>> = Vec::new();
+        let driven = ds.rollouts.iter().any(|r| !r.us.is_empty());
+        let us = if driven {
+            ds.rollouts
+                .iter()
+                .map(|r| (0..r.xs.len()).map(|k| r.u(k) as f32).collect())
+                .collect()
+        } else {
+            Vec::new()
+        };
         for (i, r) in ds.rollouts.iter().enumerate() {
             let m = ds
                 .meta(r.id)
@@ -72,7 +83,7 @@ impl Batcher {
                 }
             }
         }
-        Ok(Batcher { xs, ps, strata })
+        Ok(Batcher { xs, ps, strata, us })
     }
 
     /// Batch `iteration`'s windows, drawn from a generator seeded with the run's
@@ -85,13 +96,14 @@ impl Batcher {
         cfg: &TrainConfig,
         iteration: usize,
         device: &Device,
-    ) -> (Tensor<3>, Tensor<2>) {
+    ) -> (Tensor<3>, Tensor<2>, Option<Tensor<2>>) {
         let mut rng = ChaCha8Rng::seed_from_u64(
             cfg.seed ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
         let t = cfg.window;
         let mut x = Vec::with_capacity(cfg.batch * t * 2);
         let mut p = Vec::with_capacity(cfg.batch * 2);
+        let mut u = Vec::with_capacity(if self.us.is_empty() { 0 } else { cfg.batch * t });
         let curated = cfg.model == ModelKind::Cbm;
         for b in 0..cfg.batch {
             let k = if curated { iteration } else { b };
@@ -103,10 +115,15 @@ impl Batcher {
                 x.extend_from_slice(v);
             }
             p.extend_from_slice(&self.ps[r]);
+            if let Some(ur) = self.us.get(r) {
+                u.extend_from_slice(&ur[start..start + t]);
+            }
         }
         (
             Tensor::from_data(TensorData::new(x, [cfg.batch, t, 2]), device),
             Tensor::from_data(TensorData::new(p, [cfg.batch, 2]), device),
+            (!self.us.is_empty())
+                .then(|| Tensor::from_data(TensorData::new(u, [cfg.batch, t]), device)),
         )
     }
 }
@@ -256,10 +273,10 @@ fn train_model<M: Trainable>(
         snapshot(dir, &model, &cfg, 0)?;
     }
     while state.iteration < cfg.iterations {
-        let (x, p) = batcher.batch(&cfg, state.iteration, &device);
+        let (x, p, u) = batcher.batch(&cfg, state.iteration, &device);
         let lr = cfg.lr_at(state.iteration);
         let values = loop {
-            let stepped = step(&model, &optim, (&x, &p), lr, dir, &cfg, &state);
+            let stepped = step(&model, &optim, (&x, &p, u.as_ref()), lr, dir, &cfg, &state);
             init_guard.take();
             match stepped {
                 Ok((values, next, next_optim)) => {
@@ -403,13 +420,13 @@ fn show_progress(bar: &ProgressBar, cfg: &TrainConfig, state: &RunState) {
 fn step<M: Trainable>(
     model: &M,
     optim: &ModuleOptimizer,
-    (x, p): (&Tensor<3>, &Tensor<2>),
+    (x, p, u): (&Tensor<3>, &Tensor<2>, Option<&Tensor<2>>),
     lr: f64,
     dir: &Path,
     cfg: &TrainConfig,
     state: &RunState,
 ) -> Result<([f64; 4], M, ModuleOptimizer)> {
-    let l = model.batch_losses(x.clone(), p.clone(), cfg);
+    let l = model.batch_losses(x.clone(), p.clone(), u.cloned(), cfg);
     let values = finite_losses(&l, dir, state, cfg)?;
     let grads = GradientsParams::from_grads(l.total.backward(), model);
     let mut next_optim = optim.clone();
@@ -510,7 +527,7 @@ mod tests {
         };
         let ds = training_data(&cfg).unwrap();
         let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg).unwrap();
-        let (_, p) = b.batch(&cfg, iteration, &Device::flex());
+        let (_, p, _) = b.batch(&cfg, iteration, &Device::flex());
         let p: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
         p.chunks(2).map(|c| c[0]).collect()
     }
@@ -537,7 +554,7 @@ mod tests {
         // A batch draws from them all: coordinates inside [-1, 1], not the
         // two ends of a grid.
         let b = Batcher::new(&ds, &Norm::fit(&ds), &cfg).unwrap();
-        let (_, p) = b.batch(&cfg, 0, &Device::flex());
+        let (_, p, _) = b.batch(&cfg, 0, &Device::flex());
         let q: Vec<f32> = p.into_data().try_to_vec::<f32>().unwrap();
         let q1: Vec<f32> = q.chunks(2).map(|c| c[0]).collect();
         assert!(q1.iter().all(|v| v.abs() <= 1.0 + 1e-6), "{q1:?}");

@@ -179,6 +179,7 @@ pub fn drawn_set(seed: u64, set_name: &str, s: &DrawnSet<'_>) -> Result<Dataset>
             [&mut rng, &mut glitches],
         )?);
         metas.push(RolloutMeta {
+            drive: None,
             rollout: id,
             length,
             theta0,

@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::{Dataset, Rollout, RolloutMeta, Sidecar};
-use crate::physics::{Effect, EffectRange, Pendulum, Rig};
+use crate::physics::{Drive, DriveKind, Effect, EffectRange, Pendulum, Rig};
 use crate::protocol::{DT, G, ROLLOUT_LEN, TEST_PER_LENGTH, THETA0};
 
 /// The physical constants a data set is simulated with.
@@ -37,20 +37,34 @@ impl Physics {
 type Spec = (f64, f64, Vec<Effect>);
 
 fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
+    let specs = specs
+        .into_iter()
+        .map(|(l, th, e)| (l, th, e, None))
+        .collect();
+    make_driven(set, seed, specs, physics)
+}
+
+/// A rollout to simulate under a drive (`None`: free, no `u` column).
+type DrivenSpec = (f64, f64, Vec<Effect>, Option<(DriveKind, Drive)>);
+
+fn make_driven(set: &str, seed: u64, specs: Vec<DrivenSpec>, physics: Physics) -> Dataset {
     let mut rollouts = Vec::new();
     let mut metas = Vec::new();
     let dt = physics.dt;
-    for (id, (length, theta0, effects)) in specs.into_iter().enumerate() {
+    for (id, (length, theta0, effects, drive)) in specs.into_iter().enumerate() {
         let mut p = Pendulum::of(physics.rig, length);
         p.g = physics.g;
         p.effects = effects.clone();
-        let xs = p.rollout([theta0, 0.0], physics.steps, dt);
+        let (xs, us) = match &drive {
+            Some((_, d)) => p.driven_rollout([theta0, 0.0], physics.steps, dt, d),
+            None => (p.rollout([theta0, 0.0], physics.steps, dt), Vec::new()),
+        };
         let t = (0..physics.steps).map(|k| k as f64 * dt).collect();
         rollouts.push(Rollout {
             id: id as u32,
             t,
             xs,
-            us: Vec::new(),
+            us,
         });
         metas.push(RolloutMeta {
             rollout: id as u32,
@@ -60,6 +74,7 @@ fn make(set: &str, seed: u64, specs: Vec<Spec>, physics: Physics) -> Dataset {
                 .iter()
                 .map(|e| (e.name().to_string(), e.coefficient))
                 .collect(),
+            drive: drive.map(|(k, _)| k),
         });
     }
     Dataset {
@@ -122,6 +137,86 @@ pub fn training_set_with(
 pub fn uniform_lengths(seed: u64, [lo, hi]: [f64; 2], n: usize) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4c45_4e47_5448_5300);
     (0..n).map(|_| rng.random_range(lo..=hi)).collect()
+}
+
+/// Where a driven set's rollouts start: the protocol's `theta_0` for every
+/// family but energy pumping, which swings up from near hanging half the
+/// time (`|theta_0| < 0.3`), as a controller does.
+fn driven_theta0(kind: DriveKind, theta0: f64, rng: &mut ChaCha8Rng) -> f64 {
+    if kind == DriveKind::Energy && rng.random_bool(0.5) {
+        rng.random_range(-0.3..=0.3)
+    } else {
+        theta0
+    }
+}
+
+/// A driven training set: `per_length` rollouts at each length, the
+/// families of `drives` taking turns, `theta_0` uniform in `theta0` (or
+/// near hanging, [`driven_theta0`]), each drive drawn after its angle from
+/// the same ChaCha8 stream seeded with `seed`.
+pub fn driven_training_set(
+    seed: u64,
+    lengths: &[f64],
+    per_length: usize,
+    drives: &[DriveKind],
+    physics: Physics,
+    theta0: [f64; 2],
+) -> Dataset {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4452_4956_4553_0000);
+    let mut specs = Vec::new();
+    let mut turn = 0usize;
+    for &l in lengths {
+        for _ in 0..per_length {
+            let kind = drives
+                .get(turn % drives.len().max(1))
+                .copied()
+                .unwrap_or(DriveKind::Free);
+            turn += 1;
+            let th = rng.random_range(theta0[0]..=theta0[1]);
+            let th = driven_theta0(kind, th, &mut rng);
+            let p = Pendulum::of(physics.rig, l);
+            let d = Drive::draw(
+                kind,
+                &Pendulum { g: physics.g, ..p },
+                physics.steps,
+                physics.dt,
+                &mut rng,
+            );
+            specs.push((l, th, Vec::new(), Some((kind, d))));
+        }
+    }
+    make_driven("train", seed, specs, physics)
+}
+
+/// The driven test set: for each length and each family of `drives`, the
+/// protocol's 10 initial angles (`pi/2 + k 0.4 pi / 9`; energy pumping
+/// from near hanging half the time), each drive drawn from a ChaCha8
+/// stream seeded with `seed`.
+pub fn driven_test_set(
+    seed: u64,
+    lengths: &[f64],
+    drives: &[DriveKind],
+    physics: Physics,
+) -> Dataset {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4452_4956_4554_0000);
+    let mut specs = Vec::new();
+    for &l in lengths {
+        for &kind in drives {
+            for k in 0..TEST_PER_LENGTH {
+                let th = driven_theta0(kind, PI / 2.0 + k as f64 * 0.4 * PI / 9.0, &mut rng);
+                let p = Pendulum::of(physics.rig, l);
+                let d = Drive::draw(
+                    kind,
+                    &Pendulum { g: physics.g, ..p },
+                    physics.steps,
+                    physics.dt,
+                    &mut rng,
+                );
+                specs.push((l, th, Vec::new(), Some((kind, d))));
+            }
+        }
+    }
+    make_driven("test", seed, specs, physics)
 }
 
 /// The test set: 10 rollouts per test length, `theta_0 = pi/2 + k 0.4 pi / 9`.

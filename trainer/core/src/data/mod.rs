@@ -26,7 +26,8 @@ pub mod table;
 pub mod text;
 
 pub use generate::{
-    Physics, test_set, test_set_with, training_set, training_set_with, uniform_lengths,
+    Physics, driven_test_set, driven_training_set, test_set, test_set_with, training_set,
+    training_set_with, uniform_lengths,
 };
 pub use project_csv::{
     CSV_HEADER, read, read_sources, sidecar_path, to_csv, write, write_imported,
@@ -45,6 +46,10 @@ pub struct RolloutMeta {
     /// Undeclared effects present, name -> coefficient.
     #[serde(default)]
     pub effects: BTreeMap<String, f64>,
+    /// The family of the torques that drove it (`None`: free, or a set
+    /// written before drives).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<crate::physics::DriveKind>,
 }
 
 /// How one imported rollout's recording was sampled before the import

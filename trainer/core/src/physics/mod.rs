@@ -10,10 +10,12 @@
 //! weights blob records it; it is re-exported here, its physics with
 //! [`RigPhysics`].
 
+pub mod drive;
 pub mod effect;
 pub mod quality;
 mod rig;
 
+pub use drive::{Drive, DriveKind, MAX_TORQUE};
 pub use effect::{Effect, EffectKind, EffectRange};
 pub use estimator::rig::Rig;
 pub use rig::RigPhysics;
