@@ -29,7 +29,7 @@ mod update;
 
 pub use output::{CheckReport, FilterReport, Readers, StepOutput};
 
-use crate::swing::{Centre, Decay, Early, Fit, Period};
+use crate::swing::{Centre, Decay, Early, Fit, Growth, Period};
 
 use crate::kalman::kernels::tail;
 use crate::kalman::{AugMatrix, AugVector, Kalman};
@@ -105,6 +105,10 @@ pub struct Estimator<'m> {
     outliers: u32,
     outlier_run: u8,
     outlier: bool,
+    /// Whether a half swing grew (a drive not declared).
+    growth: Growth,
+    /// A torque was applied since the start ([`Reason::Driven`](crate::Reason::Driven)).
+    driven: bool,
     /// The last update's normalised innovation squared, where formed.
     innovation: Option<f32>,
     /// The source's own sampling interval, s (0: not declared).
@@ -142,6 +146,8 @@ impl<'m> Estimator<'m> {
             outliers: 0,
             outlier_run: 0,
             outlier: false,
+            driven: false,
+            growth: Growth::default(),
             innovation: None,
             source_dt: 0.0,
             burn_until: 0,
@@ -362,6 +368,10 @@ impl<'m> Estimator<'m> {
             return Err(Error::NonFiniteInput);
         }
         self.kalman.u = u;
+        // A torque before a measurement (not the first's: nothing came
+        // before it) makes the run driven.
+        let was_driven = self.driven;
+        self.driven |= u != 0.0 && self.kalman.started;
         let [theta, rate] = *raw;
         // The angle's zero taken off, the measurement encoded.
         let centred = self.centre.centred(theta, rate);
@@ -369,7 +379,13 @@ impl<'m> Estimator<'m> {
         let z = self.model.encode(&x_n);
         // The filter's update, then the report: the readers' evidence so
         // far joined with the filter's (fusion) and the verdict (trust).
-        let mut out = self.update(&z, Some((&centred, &x_n)))?;
+        let mut out = match self.update(&z, Some((&centred, &x_n))) {
+            Ok(out) => out,
+            Err(e) => {
+                self.driven = was_driven;
+                return Err(e);
+            }
+        };
         // The swing's readers fed this measurement (they speak from the
         // next step on; the decay's quality factor at once).
         if let Some(q) = self.read_swing(theta, rate, centred, out.filter.outlier) {

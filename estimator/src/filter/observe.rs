@@ -105,6 +105,7 @@ impl Estimator<'_> {
             self.fit.push(theta, dt);
             if let Some(half) = self.centre.push(theta, rate) {
                 self.decay.turn(half);
+                self.growth.turn(half);
                 // The source's own interval where coarser than the steps.
                 let source_dt = if self.source_dt > dt { self.source_dt } else { 0.0 };
                 // A half swing from a release is timed, not sized.

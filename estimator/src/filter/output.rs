@@ -3,6 +3,7 @@
 use super::Estimator;
 use super::fusion::Agreement;
 use crate::swing::fit;
+use crate::swing::growth::GROWTH_MIN_SAMPLES;
 use crate::kalman::kernels::tail;
 use crate::trust::{self, Checks, Trust};
 use crate::PARAM_DIM;
@@ -242,6 +243,8 @@ impl Estimator<'_> {
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
             source_ok: self.source_ok(length, calib.min_samples_per_period),
+            steady: !self.growth.grew() || !self.samples_per_period(length).is_some_and(|n| n >= GROWTH_MIN_SAMPLES),
+            free: !(self.driven || self.model.is_driven()),
             period_confirms: false,
         };
         // The period confirms the length where it is sharp and agrees, or
@@ -291,6 +294,20 @@ impl Estimator<'_> {
     /// interval, whether it has given a [`WINDOW`](crate::WINDOW) of its
     /// own samples (what the verdict reads, not interpolations). Passes
     /// where nothing is declared, or the length is not one.
+    /// Samples a period of the source (the blob's interval, or the
+    /// source's where coarser) at the length `length`; `None` for a length
+    /// that is no length.
+    fn samples_per_period(&self, length: f32) -> Option<f32> {
+        let body = &self.model.blob().body;
+        if !(length.is_finite() && length > 0.0) {
+            return None;
+        }
+        let l_eq = length * body.rig.equivalent_fraction();
+        let period = core::f32::consts::TAU * libm::sqrtf(l_eq / body.g);
+        let dt = if self.source_dt > body.dt { self.source_dt } else { body.dt };
+        Some(period / dt)
+    }
+
     fn source_ok(&self, length: f32, min_samples: f32) -> bool {
         let body = &self.model.blob().body;
         if self.source_dt <= 0.0 || !(length.is_finite() && length > 0.0) {

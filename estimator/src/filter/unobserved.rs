@@ -81,6 +81,7 @@ impl Estimator<'_> {
         }
         self.kalman.u = u;
         self.advance_unobserved()?;
+        self.driven |= u != 0.0;
         self.outlier = false;
         self.innovation = None;
         Ok(self.output([0.0; PARAM_DIM]))

@@ -131,6 +131,8 @@ pub struct Model<'a> {
     /// zero): a linear blob's, or a bilinear blob's `B_0, B_1, B_2, B_11`
     /// (format 12 on). `None`: a free model (`B = 0`).
     drive: Option<Drive<'a>>,
+    /// `drive` is there and not all zero ([`Model::is_driven`]).
+    driven: bool,
 }
 
 /// How the torque `u` enters the latent step: `y' = ... + u b`.
@@ -216,6 +218,11 @@ impl<'a> Model<'a> {
             ct,
             bilinear,
             drive,
+            driven: match drive {
+                Some(Drive::Linear(b)) => b.iter().any(|v| *v != 0.0),
+                Some(Drive::Bilinear(bs)) => bs.iter().any(|b| b.iter().any(|v| *v != 0.0)),
+                None => false,
+            },
         })
     }
 
@@ -440,11 +447,7 @@ impl<'a> Model<'a> {
     /// slot, or a bilinear blob of format 12 on) that is not all zero: a
     /// model of the driven pendulum. Without one, torques are ignored.
     pub fn is_driven(&self) -> bool {
-        match self.drive {
-            Some(Drive::Linear(b)) => b.iter().any(|v| *v != 0.0),
-            Some(Drive::Bilinear(bs)) => bs.iter().any(|b| b.iter().any(|v| *v != 0.0)),
-            None => false,
-        }
+        self.driven
     }
 
     /// Rolls the model forward from the raw state `x0` with parameters

@@ -9,6 +9,7 @@
 //! - [`early`]: the first half swings timed, before the period reads.
 //! - [`fit`]: the swing's equation fitted to the first swings.
 //! - [`decay`]: the quality factor `Q` from the half swings' amplitudes.
+//! - [`growth`]: whether a half swing grew (a drive not declared).
 //!
 //! Data walks one way: the estimator's step feeds each reader the angle
 //! and, at a turning point, the half swing; the readers' evidence is
@@ -18,6 +19,7 @@ pub(crate) mod centre;
 pub(crate) mod decay;
 pub(crate) mod early;
 pub(crate) mod fit;
+pub(crate) mod growth;
 pub(crate) mod period;
 pub(crate) mod window;
 
@@ -25,6 +27,7 @@ pub(crate) use centre::{Centre, REOPEN_SHARE};
 pub(crate) use decay::Decay;
 pub(crate) use early::Early;
 pub(crate) use fit::Fit;
+pub(crate) use growth::Growth;
 pub(crate) use period::Period;
 pub(crate) use window::SwingWindow;
 

@@ -98,6 +98,8 @@ pub(crate) const VERDICT_REL_STD: f32 = 0.05;
 /// | [`Reason::RateMismatch`] | the measured rate departs from the angle's change over the blob's interval by more than the blob allows, from the [`WINDOW`](crate::WINDOW)-th update on | another interval, a rate in other units |
 /// | [`Reason::GravityUndeclared`] | a parameter the dynamics see only through `g / p` is reported and no gravity was declared | a length read at the blob's g, which no measurement can confirm |
 /// | [`Reason::CoarseSource`] | the source was sampled fewer times a period, at the length read, than the blob's calibration covers (declared with [`Estimator::with_source_interval`](crate::Estimator::with_source_interval)) | a slow camera upsampled by the import |
+/// | [`Reason::Growing`] | a half swing grew wider than one before it by more than the tracker's noise and the sampling's phase allow ([`crate::swing`]'s growth) | a drive the model was not told of: a free pendulum only loses energy |
+/// | [`Reason::Driven`] | a torque was applied ([`Estimator::step_driven`](crate::Estimator::step_driven)) since the start, or the blob models one ([`Model::is_driven`](crate::Model::is_driven)): every check above is calibrated on free swings, a drive moves the period, the envelope and the swing the checks read, and a drive not declared to a driven model reads as free | a verdict no held-out rollout vouches for |
 ///
 /// The checks of how well the model fits the swing (`Unsettled`,
 /// `OutsideEnvelope`, `SmallSwing`, `UnevenSwing`, `Inconsistent`) are
@@ -141,6 +143,11 @@ pub enum Reason {
     /// covers, or, coarser than the blob's interval, has not yet given a
     /// window of its own samples.
     CoarseSource,
+    /// A half swing grew: a drive the model was not told of.
+    Growing,
+    /// Torques were applied, or the model is of a driven pendulum: the
+    /// verdict's checks are calibrated on free swings only.
+    Driven,
 }
 
 impl Reason {
@@ -158,6 +165,8 @@ impl Reason {
         Reason::RateMismatch,
         Reason::GravityUndeclared,
         Reason::CoarseSource,
+        Reason::Growing,
+        Reason::Driven,
     ];
 
     /// The reason in words (what `koopman estimate --json` writes as
@@ -174,6 +183,8 @@ impl Reason {
             Reason::RateMismatch => "rate does not match the angle: another interval or unit",
             Reason::GravityUndeclared => "g not declared: length read at the blob's g",
             Reason::CoarseSource => "source coarser than the blob's calibration",
+            Reason::Growing => "swing grew: a drive the model does not know",
+            Reason::Driven => "driven: the verdict is calibrated on free swings only",
         }
     }
 }
@@ -193,6 +204,8 @@ impl Reason {
             Reason::RateMismatch => "rate_mismatch",
             Reason::GravityUndeclared => "g_undeclared",
             Reason::CoarseSource => "coarse_source",
+            Reason::Growing => "growing",
+            Reason::Driven => "driven",
         }
     }
 }
@@ -206,7 +219,7 @@ impl core::fmt::Display for Reason {
 /// How many reasons there are.
 ///
 /// Unit: a count. Fixed by [`Reason`]'s variants.
-pub const REASONS: usize = 10;
+pub const REASONS: usize = 12;
 
 /// The failed checks, in the order of [`Reason::ALL`].
 pub type Reasons = Vec<Reason, REASONS>;
@@ -308,6 +321,11 @@ pub(crate) struct Checks {
     /// The source's samples a period at least the calibration's fewest
     /// (or not declared).
     pub source_ok: bool,
+    /// No half swing grew since the start.
+    pub steady: bool,
+    /// No torque applied since the start (the checks' calibration is of
+    /// free swings).
+    pub free: bool,
     /// The swing's period confirms the length: the checks of the model's
     /// fit are waived ([`Reason`]).
     pub period_confirms: bool,
@@ -331,6 +349,8 @@ impl Checks {
             self.rate_ok,
             self.gravity_known,
             self.source_ok,
+            self.steady,
+            self.free,
         ];
         let mut reasons = Reasons::new();
         for (reason, ok) in Reason::ALL.iter().zip(passed) {
@@ -373,6 +393,8 @@ mod tests {
             rate_ok: true,
             gravity_known: true,
             source_ok: true,
+            steady: true,
+            free: true,
             period_confirms: false,
         };
         assert_eq!(all_ok.verdict(), Trust::Trusted);
@@ -422,6 +444,8 @@ mod tests {
             rate_ok: false,
             gravity_known: false,
             source_ok: false,
+            steady: false,
+            free: false,
             period_confirms: false,
         };
         assert_eq!(none.verdict().reasons(), &Reason::ALL);
@@ -438,7 +462,9 @@ mod tests {
                 Reason::OutsideRange,
                 Reason::RateMismatch,
                 Reason::GravityUndeclared,
-                Reason::CoarseSource
+                Reason::CoarseSource,
+                Reason::Growing,
+                Reason::Driven
             ]
         );
     }

@@ -28,6 +28,11 @@ pub struct Args {
     /// Training rollouts per length.
     #[arg(long, default_value_t = 200)]
     rollouts: usize,
+    /// Draw each training rollout's length uniformly between the smallest
+    /// and the largest of --lengths (as many rollouts as the grid would
+    /// give), as `koopman train --draw-lengths` does.
+    #[arg(long)]
+    draw_lengths: bool,
     /// Undeclared effect in both sets, NAME:COEFFICIENT (repeatable),
     /// e.g. viscous:0.1 or offset:0.05.
     #[arg(long, value_parser = Effect::parse)]
@@ -123,6 +128,14 @@ pub fn run(a: Args) -> Result<()> {
         rig: a.rig,
         ..data::Physics::PROTOCOL
     };
+    let (lengths, per_length) = if a.draw_lengths {
+        let lo = a.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = a.lengths.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let n = a.lengths.len() * a.rollouts;
+        (data::uniform_lengths(a.seed, [lo, hi], n), 1)
+    } else {
+        (a.lengths.clone(), a.rollouts)
+    };
     let (train, test) = match &a.drives {
         Some(drives) => {
             anyhow::ensure!(
@@ -132,8 +145,8 @@ pub fn run(a: Args) -> Result<()> {
             (
                 data::driven_training_set(
                     a.seed,
-                    &a.lengths,
-                    a.rollouts,
+                    &lengths,
+                    per_length,
                     drives,
                     physics,
                     trainer_core::protocol::THETA0,
@@ -144,8 +157,8 @@ pub fn run(a: Args) -> Result<()> {
         None => (
             data::training_set_with(
                 a.seed,
-                &a.lengths,
-                a.rollouts,
+                &lengths,
+                per_length,
                 &a.effect,
                 physics,
                 trainer_core::protocol::THETA0,
