@@ -20,12 +20,14 @@
 //! # Examples
 //!
 //! ```
-//! use estimator::blob::{Aligned, Blob, FORMAT_VERSION};
+//! use estimator::blob::{Aligned, Blob, OLDEST_READ_VERSION};
 //!
 //! static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
 //!
+//! // Made in format 11 (a bilinear arena without the torque's columns):
+//! // read as it is, a model of the free pendulum.
 //! let blob = Blob::from_bytes(&RIG.0)?;
-//! assert_eq!(blob.header.version, FORMAT_VERSION);
+//! assert_eq!(blob.header.version, OLDEST_READ_VERSION);
 //! assert_eq!(blob.body.params[0].name, "length");
 //! assert_eq!(blob.body.dt, 0.04);
 //! # Ok::<(), estimator::Error>(())
