@@ -118,6 +118,11 @@ pub struct RecordingArgs {
     /// angular_velocity).
     #[arg(long)]
     pub rate_column: Option<String>,
+    /// The torque column of a driven rig, N m (the torque held from its
+    /// row to the next; default: u, torque, tau, a unit in brackets
+    /// ignored; none: a free pendulum).
+    #[arg(long)]
+    pub torque_column: Option<String>,
     /// Output interval, s (the model's dt).
     #[arg(long, default_value_t = trainer_core::protocol::DT)]
     pub dt: f64,
@@ -175,6 +180,7 @@ impl RecordingArgs {
                 time: self.time_column.clone(),
                 angle: self.angle_column.clone(),
                 rate: self.rate_column.clone(),
+                torque: self.torque_column.clone(),
             },
             pivot: self.pivot,
         })

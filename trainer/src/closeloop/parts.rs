@@ -300,6 +300,7 @@ mod tests {
             t: t.clone(),
             theta,
             theta_dot: None,
+            torque: None,
         };
         (rec, t, xs)
     }

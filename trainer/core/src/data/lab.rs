@@ -416,6 +416,7 @@ impl LabSpec {
             t,
             theta,
             theta_dot: None,
+            torque: None,
         }
     }
 }

@@ -181,6 +181,7 @@ pub fn read_recordings(
                         import::Recording {
                             theta: r.xs.iter().map(|x| x[0]).collect(),
                             theta_dot: Some(r.xs.iter().map(|x| x[1]).collect()),
+                            torque: (!r.us.is_empty()).then(|| r.us.clone()),
                             t: r.t,
                         },
                     )

@@ -374,6 +374,7 @@ mod tests {
                     t: (0..xs.len()).map(|k| k as f64 * dt).collect(),
                     theta: xs.iter().map(|x| x[0]).collect(),
                     theta_dot: None,
+                    torque: None,
                 };
                 let d = diagnose(&[("sim".into(), rec)], rig, gravity).unwrap();
                 let got = d.recordings[0].length.unwrap();

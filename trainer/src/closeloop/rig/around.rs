@@ -429,6 +429,7 @@ mod tests {
             t: part.series.t.clone(),
             theta: part.series.xs.iter().map(|x| x[0]).collect(),
             theta_dot: None,
+            torque: None,
         };
         let given = TrainConfig {
             rig: Rig::Simple,

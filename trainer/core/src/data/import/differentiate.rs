@@ -478,6 +478,7 @@ mod tests {
             t: t.clone(),
             theta: th,
             theta_dot: None,
+            torque: None,
         };
         let r = to_rollout(&rec, 1, &ImportOptions::default()).unwrap();
         assert!(r.xs.iter().all(|x| x[0].is_finite() && x[1].is_finite()));

@@ -153,6 +153,9 @@ pub struct Recording {
     pub theta: Vec<f64>,
     /// Rate, rad/s, if the input had a column for it.
     pub theta_dot: Option<Vec<f64>>,
+    /// Torque, N m, held from each sample to the next, if the input had a
+    /// column for it (a driven rig).
+    pub torque: Option<Vec<f64>>,
 }
 
 /// Which columns of a plain CSV hold what: a header name (compared
@@ -168,6 +171,8 @@ pub struct Columns {
     pub angle: Option<String>,
     /// The angular rate (optional in the file).
     pub rate: Option<String>,
+    /// The torque of a driven rig, N m (optional in the file).
+    pub torque: Option<String>,
 }
 
 /// Header names taken as the time column.
@@ -186,6 +191,8 @@ pub const TIME_NAMES: [&str; 8] = [
 pub const ANGLE_NAMES: [&str; 3] = ["theta", "angle", "phi"];
 /// Header names taken as the rate column.
 pub const RATE_NAMES: [&str; 3] = ["theta_dot", "omega", "angular_velocity"];
+/// Header names taken as the torque column (N m, held to the next row).
+pub const TORQUE_NAMES: [&str; 3] = ["u", "torque", "tau"];
 
 /// Imports one recording as rollout `id`: glitches, rate, trim, resample.
 ///
@@ -269,13 +276,30 @@ pub(crate) fn rollout_on_grid<'a>(
         angle_from: AngleFrom::Measured.word().into(),
         reordered: 0,
     };
+    let us = rec
+        .torque
+        .as_deref()
+        .map(|torque| held_at(&rec.t, torque, &grid.t))
+        .unwrap_or_default();
     let rollout = Rollout {
         id,
         t: grid.t,
         xs: grid.xs,
-        us: Vec::new(),
+        us,
     };
     Ok((rollout, source))
+}
+
+/// The torque held at each time of `grid`: the recording's at its last
+/// sample at or before it (a torque is held from its row to the next; the
+/// grid's first time is the recording's first). `t` increases.
+fn held_at(t: &[f64], torque: &[f64], grid: &[f64]) -> Vec<f64> {
+    grid.iter()
+        .map(|g| {
+            let k = t.partition_point(|s| s <= g).saturating_sub(1);
+            torque.get(k).copied().unwrap_or(0.0)
+        })
+        .collect()
 }
 
 /// Imports files as rollouts `1..`, into a data set without truth.
@@ -406,6 +430,7 @@ fn split_releases((rec, layout): (Recording, Layout)) -> Vec<(Recording, Layout)
                 t: rec.t[r.clone()].to_vec(),
                 theta: rec.theta[r.clone()].to_vec(),
                 theta_dot: rec.theta_dot.as_ref().map(|v| v[r.clone()].to_vec()),
+                torque: rec.torque.as_ref().map(|v| v[r.clone()].to_vec()),
             };
             if let (AngleFrom::Integrated { window, .. }, Some(rate)) =
                 (&layout.angle_from, &part.theta_dot)
@@ -444,6 +469,56 @@ fn import_one(
 mod tests {
     use super::*;
     use std::path::Path;
+
+    /// A driven rig's torque column is found by its name (`u`, `torque`,
+    /// `tau`, a unit in brackets) or given, and held onto the grid: each
+    /// grid time takes the torque of the last row at or before it.
+    #[test]
+    fn a_torque_column_is_read_and_held_onto_the_grid() {
+        // Rows every 0.02 s; the torque steps from 0.5 to -1.5 at 0.1 s.
+        let mut text = String::from("time [s];theta;tau [N m]\n");
+        for k in 0..=20 {
+            let t = k as f64 * 0.02;
+            let u = if t < 0.1 - 1e-9 { 0.5 } else { -1.5 };
+            text.push_str(&format!("{t};{};{u}\n", 0.1 * t));
+        }
+        let opts = ImportOptions {
+            dt: 0.05,
+            ..ImportOptions::default()
+        };
+        let rec = parse(Path::new("d.csv"), &text, &opts).unwrap();
+        assert_eq!(rec.torque.as_ref().map(Vec::len), Some(21));
+        let r = to_rollout(&rec, 1, &opts).unwrap();
+        // Grid 0, 0.05, .. 0.4: 0.5 before 0.1 s, -1.5 from it.
+        let want: Vec<f64> =
+            r.t.iter()
+                .map(|t| if *t < 0.1 - 1e-9 { 0.5 } else { -1.5 })
+                .collect();
+        assert_eq!(r.us, want);
+        // Given by number, and a file without one: free.
+        let named = ImportOptions {
+            columns: Columns {
+                torque: Some("3".into()),
+                ..Columns::default()
+            },
+            ..opts.clone()
+        };
+        let rec = parse(
+            Path::new("d.csv"),
+            &text.replace("tau [N m]", "drive"),
+            &named,
+        )
+        .unwrap();
+        assert!(rec.torque.is_some());
+        let free = parse(
+            Path::new("f.csv"),
+            "t,theta\n0,0.1\n0.05,0.2\n0.1,0.3\n",
+            &opts,
+        )
+        .unwrap();
+        assert!(free.torque.is_none());
+        assert!(to_rollout(&free, 1, &opts).unwrap().us.is_empty());
+    }
 
     #[test]
     fn a_plain_csv_is_resampled_and_trimmed() {
@@ -494,6 +569,7 @@ mod tests {
                 t: Vec::new(),
                 theta: Vec::new(),
                 theta_dot: None,
+                torque: None,
             };
             let mut last = f64::NAN;
             for k in 0..20_000 {
@@ -548,6 +624,7 @@ mod tests {
             theta: t.iter().map(|&x| 0.58 * (w * x).cos()).collect(),
             t,
             theta_dot: None,
+            torque: None,
         };
         let opts = ImportOptions {
             dt: 0.04,
@@ -573,6 +650,7 @@ mod tests {
             theta: t.iter().map(|&x| 0.58 * (w * x).cos()).collect(),
             t,
             theta_dot: None,
+            torque: None,
         };
         let (_, source) = to_rollout_with_source(&at_25, 1, &opts).unwrap();
         assert!(!source.interpolated);
@@ -591,6 +669,7 @@ mod tests {
                 theta: swing(&t),
                 t: t.clone(),
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,
@@ -624,6 +703,7 @@ mod tests {
                 theta,
                 t,
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,
@@ -646,6 +726,7 @@ mod tests {
                 theta: swing(&t),
                 t,
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,
@@ -671,6 +752,7 @@ mod tests {
                 theta: vec![0.3; 200],
                 t: t.clone(),
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,
@@ -685,6 +767,7 @@ mod tests {
                 theta: deg,
                 t: t.clone(),
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,
@@ -703,6 +786,7 @@ mod tests {
                 theta: tiny,
                 t: t.clone(),
                 theta_dot: None,
+                torque: None,
             },
             1,
             &degrees,
@@ -721,6 +805,7 @@ mod tests {
                 theta: video,
                 t: t.clone(),
                 theta_dot: None,
+                torque: None,
             },
             1,
             &degrees,
@@ -735,6 +820,7 @@ mod tests {
                 theta: swing(&one),
                 t: one,
                 theta_dot: None,
+                torque: None,
             },
             1,
             &opts,

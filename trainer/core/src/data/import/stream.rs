@@ -82,6 +82,7 @@ impl Stream {
                 t: Vec::new(),
                 theta: Vec::new(),
                 theta_dot: None,
+                torque: None,
             },
             origin: None,
             next: 0,

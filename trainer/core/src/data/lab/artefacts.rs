@@ -167,6 +167,7 @@ fn select(rec: &Recording, keep: &[bool]) -> Recording {
         t: pick(&rec.t),
         theta: pick(&rec.theta),
         theta_dot: rec.theta_dot.as_deref().map(pick),
+        torque: rec.torque.as_deref().map(pick),
     }
 }
 
@@ -181,6 +182,7 @@ mod tests {
             t: (0..n).map(|k| k as f64 / 25.0).collect(),
             theta: (0..n).map(|k| 1e-3 * k as f64).collect(),
             theta_dot: None,
+            torque: None,
         }
     }
 

@@ -29,6 +29,7 @@ pub(super) fn parse_encoder(table: &Table) -> Result<Recording, CsvError> {
         t,
         theta,
         theta_dot: None,
+        torque: None,
     })
 }
 

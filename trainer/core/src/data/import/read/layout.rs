@@ -74,6 +74,8 @@ pub struct Layout {
     pub angle: String,
     /// The rate column's header, if one.
     pub rate: Option<String>,
+    /// The torque column's header (N m), if one: a driven rig.
+    pub torque: Option<String>,
     /// The angle's unit and where it came from.
     pub angle_unit: (Unit, UnitSource),
     /// The rate's angle unit (per second) and where it came from.
@@ -106,6 +108,7 @@ impl Layout {
             time: time.map(|k| table.header[k].clone()),
             angle: String::new(),
             rate: None,
+            torque: None,
             angle_unit: unit,
             rate_unit: unit,
             angle_from: AngleFrom::Measured,
@@ -178,6 +181,9 @@ impl Layout {
                 ", rate `{h}` in {}",
                 unit_words(self.rate_unit, "/s")
             ));
+        }
+        if let Some(h) = &self.torque {
+            text.push_str(&format!(", torque `{h}` in N m"));
         }
         if let Some((k, n, from, to)) = self.release {
             text.push_str(&format!("; release {k} of {n}, {from:.2} to {to:.2} s"));

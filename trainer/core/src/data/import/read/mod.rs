@@ -38,7 +38,7 @@ use crate::data::table::{CsvError, Table};
 
 use super::position::about_pivot;
 use super::rate_only::integrate;
-use super::{ImportOptions, Recording, TIME_NAMES, Unit};
+use super::{ImportOptions, Recording, TIME_NAMES, TORQUE_NAMES, Unit};
 pub use columns::unrecognised;
 use columns::{Holds, TRACKER_ANGLE, find, holds, no_time};
 use encoder::parse_encoder;
@@ -106,18 +106,28 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
     if ti.is_none() && opts.rate.is_none() {
         return Err(no_time(table));
     }
-    let cols: Vec<usize> = match &holds {
+    let mut cols: Vec<usize> = match &holds {
         Holds::Angle { angle, rate } => [Some(*angle), *rate].into_iter().flatten().collect(),
         Holds::Rate(axes) => axes.clone(),
         Holds::Position { x, y } => vec![*x, *y],
     };
+    // A driven rig's torque, read beside them (its last column).
+    let torque_col = find(
+        table,
+        opts.columns.torque.as_deref(),
+        &TORQUE_NAMES,
+        "torque",
+    )?
+    .filter(|k| !cols.contains(k) && Some(*k) != ti);
+    cols.extend(torque_col);
     let Rows {
         t,
-        values,
+        mut values,
         skipped,
         repeated,
         reordered,
     } = read_rows(table, ti, &cols, opts.rate)?;
+    let torque = torque_col.and_then(|_| values.pop());
     let header = |k: usize| table.header[k].clone();
     let unit_of = |k: usize, fallback| column_unit(&table.header[k], opts, fallback);
     let options_unit = (opts.unit, UnitSource::Options);
@@ -125,6 +135,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
         skipped,
         repeated,
         reordered,
+        torque: torque_col.map(|k| table.header[k].clone()),
         ..Layout::of(table, ti, options_unit)
     };
     let recording = match holds {
@@ -156,6 +167,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
                 t,
                 theta,
                 theta_dot,
+                torque,
             }
         }
         Holds::Rate(axes) => {
@@ -181,6 +193,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
                 t,
                 theta: got.theta,
                 theta_dot: Some(got.rate),
+                torque,
             }
         }
         Holds::Position { x, y } => {
@@ -198,6 +211,7 @@ fn parse_run(table: &Table, opts: &ImportOptions) -> Result<(Recording, Layout),
                 t,
                 theta: got.theta,
                 theta_dot: None,
+                torque,
             }
         }
     };
