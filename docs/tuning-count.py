@@ -28,7 +28,7 @@ A constant's doc comment is the run of `///` lines right above it
 (attribute lines `#[...]` in between are skipped).
 
 "With unit": the doc comment holds a unit token, as a whole word: a
-physical unit (`rad`, `rad/s`, `s`, `m`, `Hz`, `1/s`, `1/s^2`, `bytes`,
+physical unit (`rad`, `rad/s`, `s`, `m`, `kg`, `Hz`, `1/s`, `1/s^2`, `bytes`,
 `degrees`), or a dimensionless kind (`dimensionless`, `share`, `ratio`,
 `relative`, `a count`, `count of`, `number of`, `how many`, `no unit`).
 A bare count noun ("Measurements a half swing holds") does not count.
@@ -53,7 +53,7 @@ SRC = ROOT / "estimator" / "src"
 
 CONST = re.compile(r"^(\s*)(?:pub(?:\([a-z]+\))?\s+)?const\s+([A-Z_][A-Z0-9_]*)\s*:")
 UNIT = re.compile(
-    r"(?<![\w'`])(rad|rad/s|s|m|Hz|1/s|1/s\^2|bytes|degrees)(?![\w'`])"
+    r"(?<![\w'`])(rad|rad/s|s|m|kg|Hz|1/s|1/s\^2|bytes|degrees)(?![\w'`])"
     r"|\b(dimensionless|share|ratio|relative|a count|count of|number of|how many|no unit)\b",
     re.IGNORECASE,
 )

@@ -88,6 +88,7 @@ macro_rules! internal {
 }
 
 pub mod blob;
+pub mod control;
 mod error;
 pub mod kalman;
 internal! {

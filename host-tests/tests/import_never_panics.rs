@@ -110,7 +110,7 @@ proptest! {
             theta[n - 1] = theta[n - 2];
         }
         let rows = t.len();
-        let rec = Recording { t, theta, theta_dot: None };
+        let rec = Recording { t, theta, theta_dot: None, torque: None };
         let opts = ImportOptions { dt: 0.04, ..ImportOptions::default() };
         if let Ok(r) = import::to_rollout(&rec, 1, &opts) {
             prop_assert!(r.xs.len() <= 63 * rows + 1, "{} points from {rows} rows", r.xs.len());

@@ -69,6 +69,10 @@ enum Cmd {
     /// how often its length is right, and trusted.
     #[command(after_help = cli::EXIT_CODES)]
     LabCheck(cli::lab_check::Args),
+    /// Swings up and balances a pendulum whose length it reads as it goes:
+    /// `theta,theta_dot` per line on stdin, `u,length` per line on stdout.
+    #[command(after_help = cli::EXIT_CODES)]
+    Control(cli::control::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -84,6 +88,7 @@ fn main() -> std::process::ExitCode {
         Cmd::CloseLoop(a) => cli::close_loop::run(a),
         Cmd::Evaluate(a) => cli::evaluate::run(a),
         Cmd::LabCheck(a) => cli::lab_check::run(a),
+        Cmd::Control(a) => cli::control::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

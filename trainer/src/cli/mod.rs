@@ -11,6 +11,7 @@ use trainer_core::physics::Rig;
 pub mod bench;
 pub mod calibrate;
 pub mod close_loop;
+pub mod control;
 pub mod diagnose;
 pub mod estimate;
 pub mod evaluate;

@@ -1,0 +1,158 @@
+//! `koopman control`: a line protocol that swings up and balances a
+//! pendulum whose length it reads as it goes.
+//!
+//! Standard input: one line per measurement, `theta,theta_dot` (rad,
+//! rad/s; theta from hanging), at the blob's interval. Standard output: one
+//! line per input line, `u,length` (the torque to hold until the next line,
+//! N m, within the limit; the length read so far, m), flushed at once. The
+//! estimator is told each torque it applied ([`estimator::Estimator::step_driven`]);
+//! the controller ([`estimator::control`]) uses the length it reads.
+
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use estimator::Estimator;
+use estimator::control::Controller;
+
+/// Swings up and balances a pendulum through a line protocol: reads
+/// `theta,theta_dot` per line on stdin, writes `u,length` per line on
+/// stdout.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Weights blob (one that learned the torque's `B`, e.g.
+    /// `weights/pendulum-bilinear-driven.kkf`).
+    #[arg(long)]
+    weights: PathBuf,
+    /// Gravity of the rig, m/s^2.
+    #[arg(long, value_parser = super::gravity)]
+    g: f64,
+    /// The torque limit, N m.
+    #[arg(long, default_value_t = 2.0)]
+    max_torque: f64,
+    /// Control with this length (m) instead of the one read (the
+    /// comparisons: the true length, or one guess for every rod); the
+    /// estimator still runs and its length is still printed.
+    #[arg(long)]
+    length: Option<f64>,
+}
+
+/// Runs it over standard input and output.
+pub fn run(a: Args) -> Result<()> {
+    anyhow::ensure!(
+        a.max_torque.is_finite() && a.max_torque > 0.0,
+        "--max-torque must be a positive number of N m"
+    );
+    let bytes = super::read_blob(&a.weights)?;
+    let model = super::model(&a.weights, &bytes)?;
+    if !model.is_driven() {
+        eprintln!(
+            "{}: a blob without the torque's B: the estimate is read as if the pendulum were free",
+            a.weights.display()
+        );
+    }
+    let stdin = std::io::stdin();
+    let stdout = std::io::stdout();
+    let fixed = a.length.map(|l| l as f32);
+    control(
+        &model,
+        a.g as f32,
+        a.max_torque as f32,
+        fixed,
+        stdin.lock(),
+        stdout.lock(),
+    )
+}
+
+/// The protocol over `input` and `output`, controlling with the length
+/// read (or `fixed`): an error names a malformed line (1-based).
+pub fn control(
+    model: &estimator::Model<'_>,
+    g: f32,
+    max_torque: f32,
+    fixed: Option<f32>,
+    input: impl BufRead,
+    mut output: impl Write,
+) -> Result<()> {
+    let body = &model.blob().body;
+    let mut est = Estimator::new(model).with_gravity(g)?;
+    let mut ctl = Controller::new(body.rig, g, max_torque, body.dt);
+    // Where the estimate is no length yet: the middle of the trained range.
+    let [lo, hi] = body.params[0].train_range;
+    let fallback = 0.5 * (lo + hi) * g / body.g;
+    let mut held: Option<f32> = None;
+    for (k, line) in input.lines().enumerate() {
+        let n = k + 1;
+        let line = line.with_context(|| format!("line {n}: cannot read"))?;
+        let text = line.trim();
+        if text.is_empty() {
+            continue;
+        }
+        let x = parse(text).with_context(|| format!("line {n}: {text:?}"))?;
+        let out = match held {
+            Some(u) => est.step_driven(&x, u),
+            None => est.step(&x),
+        }
+        .map_err(|e| anyhow::anyhow!("line {n}: {e}"))?;
+        let read = out.params[0];
+        let length = if read.is_finite() && read > 0.0 {
+            read
+        } else {
+            fallback
+        };
+        let u = ctl.torque(&x, fixed.unwrap_or(length));
+        writeln!(output, "{u},{length}")?;
+        output.flush()?;
+        held = Some(u);
+    }
+    Ok(())
+}
+
+/// `theta,theta_dot` as two finite numbers.
+fn parse(text: &str) -> Result<[f32; 2]> {
+    let mut fields = text.split(',').map(str::trim);
+    let mut next = |what: &str| -> Result<f32> {
+        let f = fields
+            .next()
+            .with_context(|| format!("no {what}: expected `theta,theta_dot`"))?;
+        let v = trainer_core::data::number::number(f)
+            .filter(|v| v.is_finite())
+            .with_context(|| format!("{what} {f:?} is not a finite number"))?;
+        Ok(v as f32)
+    };
+    let x = [next("theta")?, next("theta_dot")?];
+    anyhow::ensure!(
+        fields.next().is_none(),
+        "more than two fields: expected `theta,theta_dot`"
+    );
+    Ok(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_are_two_finite_numbers() {
+        assert_eq!(parse("0.5, -1.25").unwrap(), [0.5, -1.25]);
+        assert!(
+            parse("0.5")
+                .unwrap_err()
+                .to_string()
+                .contains("no theta_dot")
+        );
+        assert!(
+            parse("0.5,x")
+                .unwrap_err()
+                .to_string()
+                .contains("not a finite number")
+        );
+        assert!(
+            parse("0.5,1,2")
+                .unwrap_err()
+                .to_string()
+                .contains("more than two")
+        );
+        assert!(parse("NaN,1").is_err());
+    }
+}
