@@ -96,5 +96,6 @@ fn main() {
     table(&mut src, "ROLLOUTS", "rollouts.bin");
     table(&mut src, "RIG_ROLLOUTS", "rig-rollouts.bin");
     driven_table(&mut src, "DRIVEN_ROLLOUTS", "driven-rollouts.bin");
+    driven_table(&mut src, "SWING_UP", "swing-up.bin");
     fs::write(out.join("rollouts.rs"), src).expect("write rollouts.rs");
 }

@@ -12,11 +12,12 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+use estimator::control::Controller;
 use estimator::{Estimator, Model, Trust};
 use host_tests::{rig_blob, root, shipped_blob};
 use trainer_core::bench::rig_window;
 use trainer_core::data::{Physics, driven_test_set, states_f32, test_set};
-use trainer_core::physics::DriveKind;
+use trainer_core::physics::{DriveKind, Pendulum};
 use trainer_core::protocol::{TEST_LENGTHS, TEST_PER_LENGTH};
 
 /// Steps per rollout in the firmware: whole test rollouts, the protocol's
@@ -104,6 +105,49 @@ fn driven_rollouts() -> Vec<(u32, Vec<[f32; 3]>)> {
         .collect()
 }
 
+/// The length the controller uses where the estimate is no length yet, m
+/// (the firmware's `CONTROL_FALLBACK`).
+const CONTROL_FALLBACK: f32 = 3.5;
+
+/// Steps of the recorded swing-up.
+const SWING_UP_STEPS: usize = 256;
+
+/// A swing-up recorded on the host: a 3 m rod from rest at 0.05 rad on the
+/// project's RK4, each measurement (as `f32`) stepped through the driven
+/// blob with the torque before it and the controller's torque at the
+/// length read applied over the next 0.05 s. Rows `(theta, theta_dot, u)`;
+/// rollout id 0.
+fn swing_up() -> Vec<(u32, Vec<[f32; 3]>)> {
+    let bytes = driven_blob();
+    let model = Model::from_bytes(&bytes).unwrap();
+    let body = &model.blob().body;
+    let mut est = Estimator::new(&model).at_trained_gravity();
+    let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
+    let rod = Pendulum::new(3.0);
+    let mut x = [0.05f64, 0.0];
+    let mut held: Option<f32> = None;
+    let mut rows = Vec::new();
+    for _ in 0..SWING_UP_STEPS {
+        let m = [x[0] as f32, x[1] as f32];
+        let out = match held {
+            Some(u) => est.step_driven(&m, u),
+            None => est.step(&m),
+        }
+        .unwrap();
+        let read = out.params[0];
+        let length = if read.is_finite() && read > 0.0 {
+            read
+        } else {
+            CONTROL_FALLBACK
+        };
+        let u = ctl.torque(&m, length);
+        rows.push([m[0], m[1], u]);
+        x = rod.step(x, f64::from(u), f64::from(body.dt));
+        held = Some(u);
+    }
+    vec![(0, rows)]
+}
+
 /// `driven-rollouts.bin`: as [`encode`], with triples.
 fn encode_driven(rollouts: &[(u32, Vec<[f32; 3]>)]) -> Vec<u8> {
     let steps = rollouts.first().map_or(0, |r| r.1.len());
@@ -127,6 +171,7 @@ fn firmware_rollouts_are_the_protocol_test_set_and_the_string() {
         ("rollouts.bin", encode(&firmware_rollouts())),
         ("rig-rollouts.bin", encode(&rig_rollouts())),
         ("driven-rollouts.bin", encode_driven(&driven_rollouts())),
+        ("swing-up.bin", encode_driven(&swing_up())),
     ] {
         let path = firmware_dir().join(file);
         if std::env::var_os("KOOPMAN_BLESS").is_some() {
@@ -380,6 +425,21 @@ fn firmware_in_qemu_matches_the_host() {
         }
     }
     assert!(steps.next().is_none(), "more step lines than measurements");
+    // The swing-up's torques, recomputed by the firmware from the same
+    // measurements: bit for bit the host's.
+    let recorded = swing_up();
+    let ctl: Vec<&str> = lines
+        .iter()
+        .copied()
+        .filter(|l| l.starts_with("ctl "))
+        .collect();
+    assert_eq!(ctl.len(), SWING_UP_STEPS, "one ctl line a step");
+    for (line, row) in ctl.iter().zip(&recorded[0].1) {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        let u = f32::from_bits(u32::from_str_radix(w[3], 16).unwrap());
+        assert_eq!(u.to_bits(), row[2].to_bits(), "{line}: host {}", row[2]);
+        compared += 1;
+    }
     // The test rollouts at L = 0.5 and 1 are untrusted with reasons, so
     // the reasons were compared, not only the empty lists.
     assert!(reasons_seen > 0, "no step with reasons compared");
@@ -418,6 +478,14 @@ fn report_sizes_and_costs(lines: &[&str], compared: usize, worst: f32) {
     }
     eprintln!("firmware: {compared} values equal the host's, largest difference {worst:e}");
     eprintln!("firmware: {sizes}");
+    if let Some(l) = lines.iter().find(|l| l.starts_with("control steps")) {
+        let n: u64 = field(l, "steps").parse().unwrap();
+        let t: u64 = field(l, "ticks").parse().unwrap();
+        eprintln!(
+            "firmware: {l}\n  => instructions per control step (the controller alone, the swing-up): {}",
+            t * INSTRUCTIONS_PER_TICK / n.max(1)
+        );
+    }
     for key in ["stack used", "rig sizes", "rig stack used"] {
         let l = lines.iter().find(|l| l.starts_with(key)).unwrap();
         eprintln!("firmware: {l}");

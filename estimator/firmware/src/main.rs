@@ -31,6 +31,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 use estimator::blob::Aligned;
+use estimator::control::Controller;
 use estimator::{Estimator, Model, Trust};
 
 mod rollouts {
@@ -234,6 +235,9 @@ fn main() -> ! {
     if ok {
         ok = run_driven(&mut line);
     }
+    if ok {
+        ok = run_control(&mut line);
+    }
     line.str(if ok { "done" } else { "failed" }).send();
     debug::exit(if ok {
         debug::EXIT_SUCCESS
@@ -361,6 +365,76 @@ fn run_driven(line: &mut Line) -> bool {
             return false;
         }
     }
+    true
+}
+
+/// The length the controller uses where the estimate is no length yet, m
+/// (the host's test uses the same).
+const CONTROL_FALLBACK: f32 = 3.5;
+
+/// A recorded swing-up (`swing-up.bin`: the states and the torques the
+/// host's estimator and controller applied) stepped again here: each
+/// measurement with the torque before it, then the controller's torque
+/// at the length read, printed (`ctl`) and timed alone.
+#[inline(never)]
+fn run_control(line: &mut Line) -> bool {
+    let model = match Model::from_bytes(&DRIVEN_BLOB.0) {
+        Ok(m) => m,
+        Err(e) => {
+            line.str("error: driven blob refused: ")
+                .str(e.message())
+                .send();
+            return false;
+        }
+    };
+    let body = &model.blob().body;
+    let mut est = Estimator::new(&model).at_trained_gravity();
+    let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
+    let (mut ticks_sum, mut steps) = (0u64, 0u64);
+    for (id, rows) in &rollouts::SWING_UP {
+        let mut held: Option<f32> = None;
+        for (k, r) in rows.iter().enumerate() {
+            let x = [r[0], r[1]];
+            let out = match held {
+                Some(u) => est.step_driven(&x, u),
+                None => est.step(&x),
+            };
+            let out = match out {
+                Ok(o) => o,
+                Err(e) => {
+                    line.str("error: step refused: ").str(e.message()).send();
+                    return false;
+                }
+            };
+            let read = out.params[0];
+            let length = if read.is_finite() && read > 0.0 {
+                read
+            } else {
+                CONTROL_FALLBACK
+            };
+            let before = SYST::get_current();
+            let u = ctl.torque(&x, length);
+            let after = SYST::get_current();
+            ticks_sum += u64::from(ticks(before, after));
+            steps += 1;
+            line.str("ctl ")
+                .uint(u64::from(*id))
+                .str(" ")
+                .uint(k as u64)
+                .str(" ");
+            line.hex(u);
+            line.hex(length);
+            line.send();
+            // The recorded torque is what the host applied: the next
+            // measurement follows it.
+            held = Some(r[2]);
+        }
+    }
+    line.str("control steps=")
+        .uint(steps)
+        .str(" ticks=")
+        .uint(ticks_sum)
+        .send();
     true
 }
 
