@@ -12,6 +12,7 @@ reads, with the true length (`--length L`), and with 3.5 m for every rod.
     /work/venv-driven/bin/python docs/driven/control_gym.py \
         [--weights weights/pendulum-bilinear-driven.kkf] [--lengths 2,3,4,5] \
         [--starts 5] [--seed 1] [--json OUT] [--trace DIR]
+    .../control_gym.py --picture docs/control-swing-up.png   # one run, drawn
 """
 
 import argparse
@@ -29,14 +30,18 @@ def wrap(a):
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def run(koopman, weights, length, theta0, fixed=None, steps=600):
+def run(koopman, weights, length, theta0, fixed=None, steps=600, plot=None):
     env = gym.make("Pendulum-v1", g=10.0)
     env.reset(seed=0)
     env.unwrapped.l = length
-    env.unwrapped.state = np.array([wrap(theta0 + math.pi), 0.0])
+    # Gym's theta is from the upright and not wrapped as it moves: theta0 + pi
+    # keeps the protocol's theta = gym's - pi continuous from theta0.
+    env.unwrapped.state = np.array([theta0 + math.pi, 0.0])
     cmd = [koopman, "control", "--weights", weights, "--g", "10", "--max-torque", "2"]
     if fixed is not None:
         cmd += ["--length", str(fixed)]
+    if plot is not None:
+        cmd += ["--plot", plot]
     p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
     trace = []
     for _ in range(steps):
@@ -64,7 +69,12 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json")
     ap.add_argument("--trace", help="write each run's trace (theta, theta_dot, u, length) here")
+    ap.add_argument("--picture", help="instead, one run (a 3 m rod from 0.05 rad, the length read) drawn to this PNG")
     a = ap.parse_args()
+    if a.picture:
+        bal, est, _ = run(a.koopman, a.weights, 3.0, 0.05, plot=a.picture)
+        print(f"balanced {bal}, final length read {est:.3f} m; wrote {a.picture}")
+        return
     rng = np.random.default_rng(a.seed)
     lengths = [float(x) for x in a.lengths.split(",")]
     results = []

@@ -35,6 +35,10 @@ pub struct Args {
     /// estimator still runs and its length is still printed.
     #[arg(long)]
     length: Option<f64>,
+    /// At the end of input, draw the run (the angle, the torque, and the
+    /// length read with its 2-std band, against time) to this PNG.
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 /// Runs it over standard input and output.
@@ -54,18 +58,105 @@ pub fn run(a: Args) -> Result<()> {
     let stdin = std::io::stdin();
     let stdout = std::io::stdout();
     let fixed = a.length.map(|l| l as f32);
-    control(
+    let run = control(
         &model,
         a.g as f32,
         a.max_torque as f32,
         fixed,
         stdin.lock(),
         stdout.lock(),
-    )
+    )?;
+    if let Some(path) = &a.plot {
+        plot(&run, f64::from(model.blob().body.dt), a.max_torque, path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// One step of a run: the measured angle, the torque applied after it,
+/// the length read and its standard deviation.
+pub type Row = [f32; 4];
+
+/// The run against time in three panels: `theta` (from hanging, the
+/// upright dashed), the torque within its limit, the length read with
+/// its 2-std band.
+fn plot(run: &[Row], dt: f64, max_torque: f64, path: &std::path::Path) -> Result<()> {
+    use plotters::prelude::*;
+    use trainer_core::plot::{TimeFrame, bounds, err, png, time_chart};
+    let root = png(path, (900, 800))?;
+    let panels = root.split_evenly((3, 1));
+    let t = |k: usize| k as f64 * dt;
+    let end = t(run.len().max(2) - 1);
+    let series = |j: usize| -> Vec<(f64, f64)> {
+        run.iter()
+            .enumerate()
+            .map(|(k, r)| (t(k), f64::from(r[j])))
+            .collect()
+    };
+    let frame = |caption: Option<String>, y_desc: &'static str| TimeFrame {
+        caption,
+        y_desc,
+        y_labels: 55,
+    };
+    let pi = std::f64::consts::PI;
+    let (lo, hi) = bounds(series(0).iter().map(|p| p.1).chain([pi, -pi]));
+    let mut c = time_chart(
+        &panels[0],
+        frame(Some("koopman control: a swing-up".into()), "theta (rad)"),
+        0.0..end,
+        lo..hi,
+    )?;
+    for top in [pi, -pi] {
+        c.draw_series(DashedLineSeries::new(
+            vec![(0.0, top), (end, top)],
+            6,
+            4,
+            BLACK.mix(0.5).into(),
+        ))
+        .map_err(err)?;
+    }
+    c.draw_series(LineSeries::new(series(0), &BLUE))
+        .map_err(err)?;
+    let mut c = time_chart(
+        &panels[1],
+        frame(None, "u (N m)"),
+        0.0..end,
+        -max_torque * 1.1..max_torque * 1.1,
+    )?;
+    c.draw_series(LineSeries::new(series(1), &RED))
+        .map_err(err)?;
+    let band: Vec<(f64, f64, f64)> = run
+        .iter()
+        .enumerate()
+        .map(|(k, r)| (t(k), f64::from(r[2]), 2.0 * f64::from(r[3])))
+        .filter(|(_, l, s)| l.is_finite() && s.is_finite())
+        .collect();
+    let (lo, hi) = bounds(band.iter().flat_map(|(_, l, s)| [l - s, l + s]));
+    let mut c = time_chart(
+        &panels[2],
+        frame(None, "length read (m)"),
+        0.0..end,
+        lo.max(0.0)..hi,
+    )?;
+    let upper = band.iter().map(|(t, l, s)| (*t, l + s));
+    let lower = band.iter().rev().map(|(t, l, s)| (*t, l - s));
+    c.draw_series(std::iter::once(Polygon::new(
+        upper.chain(lower).collect::<Vec<_>>(),
+        GREEN.mix(0.25).filled(),
+    )))
+    .map_err(err)?;
+    c.draw_series(LineSeries::new(
+        band.iter().map(|(t, l, _)| (*t, *l)),
+        &GREEN,
+    ))
+    .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
 }
 
 /// The protocol over `input` and `output`, controlling with the length
-/// read (or `fixed`): an error names a malformed line (1-based).
+/// read (or `fixed`): an error names a malformed line (1-based). Returns
+/// the run ([`Row`] a step).
 pub fn control(
     model: &estimator::Model<'_>,
     g: f32,
@@ -73,7 +164,8 @@ pub fn control(
     fixed: Option<f32>,
     input: impl BufRead,
     mut output: impl Write,
-) -> Result<()> {
+) -> Result<Vec<Row>> {
+    let mut run = Vec::new();
     let body = &model.blob().body;
     let mut est = Estimator::new(model).with_gravity(g)?;
     let mut ctl = Controller::new(body.rig, g, max_torque, body.dt);
@@ -104,8 +196,9 @@ pub fn control(
         writeln!(output, "{u},{length}")?;
         output.flush()?;
         held = Some(u);
+        run.push([x[0], u, length, out.param_std[0]]);
     }
-    Ok(())
+    Ok(run)
 }
 
 /// `theta,theta_dot` as two finite numbers.
