@@ -125,15 +125,11 @@ fn swing_up() -> Vec<(u32, Vec<[f32; 3]>)> {
     let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
     let rod = Pendulum::new(3.0);
     let mut x = [0.05f64, 0.0];
-    let mut held: Option<f32> = None;
+    let mut held = 0.0f32;
     let mut rows = Vec::new();
     for _ in 0..SWING_UP_STEPS {
         let m = [x[0] as f32, x[1] as f32];
-        let out = match held {
-            Some(u) => est.step_driven(&m, u),
-            None => est.step(&m),
-        }
-        .unwrap();
+        let out = est.step_driven(&m, held).unwrap();
         let read = out.params[0];
         let length = if read.is_finite() && read > 0.0 {
             read
@@ -143,7 +139,7 @@ fn swing_up() -> Vec<(u32, Vec<[f32; 3]>)> {
         let u = ctl.torque(&m, length);
         rows.push([m[0], m[1], u]);
         x = rod.step(x, f64::from(u), f64::from(body.dt));
-        held = Some(u);
+        held = u;
     }
     vec![(0, rows)]
 }
@@ -396,11 +392,12 @@ fn firmware_in_qemu_matches_the_host() {
     }
     for (id, mode, mut est, xs, us) in runs {
         for (k, x) in xs.iter().enumerate() {
-            let h = match (us, k.checked_sub(1)) {
-                (Some(us), Some(j)) => est.step_driven(x, us[j]).unwrap(),
-                (Some(_), None) => est.step_driven(x, 0.0).unwrap(),
-                (None, _) => est.step(x).unwrap(),
+            // The torque held before `x` (none before the first, or free).
+            let u = match (us, k.checked_sub(1)) {
+                (Some(us), Some(j)) => us[j],
+                _ => 0.0,
             };
+            let h = est.step_driven(x, u).unwrap();
             let line = steps.next().expect("fewer step lines than measurements");
             let w: Vec<&str> = line.split_whitespace().collect();
             assert_eq!(w[1].parse::<u32>().unwrap(), id, "{line}");

@@ -10,10 +10,24 @@ use std::process::{Command, Stdio};
 
 use trainer_core::physics::Pendulum;
 
-fn koopman() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_koopman"));
-    c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-    c
+/// `koopman control` with the driven blob at g 10 and `extra` flags, its
+/// three streams piped.
+fn control(extra: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_koopman"))
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args([
+            "control",
+            "--weights",
+            "weights/pendulum-bilinear-driven.kkf",
+            "--g",
+            "10",
+        ])
+        .args(extra)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
 }
 
 /// A 3 m rod from rest near hanging, 200 steps of 0.05 s (10 s) driven by
@@ -23,21 +37,7 @@ fn koopman() -> Command {
 /// torques moves it).
 #[test]
 fn a_short_swing_up_through_the_line_protocol() {
-    let mut child = koopman()
-        .args([
-            "control",
-            "--weights",
-            "weights/pendulum-bilinear-driven.kkf",
-            "--g",
-            "10",
-            "--max-torque",
-            "2",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = control(&["--max-torque", "2"]);
     let mut stdin = child.stdin.take().unwrap();
     let mut stdout = BufReader::new(child.stdout.take().unwrap());
     let rod = Pendulum::new(3.0);
@@ -63,19 +63,7 @@ fn a_short_swing_up_through_the_line_protocol() {
 
 #[test]
 fn a_malformed_line_is_an_error_that_names_it() {
-    let mut child = koopman()
-        .args([
-            "control",
-            "--weights",
-            "weights/pendulum-bilinear-driven.kkf",
-            "--g",
-            "10",
-        ])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = control(&[]);
     let mut stdin = child.stdin.take().unwrap();
     writeln!(stdin, "0.1,0\n0.1,oops").unwrap();
     drop(stdin);

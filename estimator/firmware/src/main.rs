@@ -392,13 +392,11 @@ fn run_control(line: &mut Line) -> bool {
     let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
     let (mut ticks_sum, mut steps) = (0u64, 0u64);
     for (id, rows) in &rollouts::SWING_UP {
-        let mut held: Option<f32> = None;
+        // The torque held before each measurement (none before the first).
+        let mut held = 0.0f32;
         for (k, r) in rows.iter().enumerate() {
             let x = [r[0], r[1]];
-            let out = match held {
-                Some(u) => est.step_driven(&x, u),
-                None => est.step(&x),
-            };
+            let out = est.step_driven(&x, held);
             let out = match out {
                 Ok(o) => o,
                 Err(e) => {
@@ -427,7 +425,7 @@ fn run_control(line: &mut Line) -> bool {
             line.send();
             // The recorded torque is what the host applied: the next
             // measurement follows it.
-            held = Some(r[2]);
+            held = r[2];
         }
     }
     line.str("control steps=")
@@ -480,11 +478,7 @@ fn filter_driven(
         };
         let top = paint_stack(STEP_PAINT);
         let before = SYST::get_current();
-        let out = if us.is_some() {
-            est.step_driven(x, u)
-        } else {
-            est.step(x)
-        };
+        let out = est.step_driven(x, u);
         let after = SYST::get_current();
         step_stack = step_stack.max(stack_used(top, STEP_PAINT));
         let out = match out {

@@ -172,7 +172,9 @@ pub fn control(
     // Where the estimate is no length yet: the middle of the trained range.
     let [lo, hi] = body.params[0].train_range;
     let fallback = 0.5 * (lo + hi) * g / body.g;
-    let mut held: Option<f32> = None;
+    // The torque held before each measurement (none before the first;
+    // `step_driven(x, 0)` is `step(x)`).
+    let mut held = 0.0f32;
     for (k, line) in input.lines().enumerate() {
         let n = k + 1;
         let line = line.with_context(|| format!("line {n}: cannot read"))?;
@@ -181,11 +183,9 @@ pub fn control(
             continue;
         }
         let x = parse(text).with_context(|| format!("line {n}: {text:?}"))?;
-        let out = match held {
-            Some(u) => est.step_driven(&x, u),
-            None => est.step(&x),
-        }
-        .map_err(|e| anyhow::anyhow!("line {n}: {e}"))?;
+        let out = est
+            .step_driven(&x, held)
+            .map_err(|e| anyhow::anyhow!("line {n}: {e}"))?;
         let read = out.params[0];
         let length = if read.is_finite() && read > 0.0 {
             read
@@ -195,7 +195,7 @@ pub fn control(
         let u = ctl.torque(&x, fixed.unwrap_or(length));
         writeln!(output, "{u},{length}")?;
         output.flush()?;
-        held = Some(u);
+        held = u;
         run.push([x[0], u, length, out.param_std[0]]);
     }
     Ok(run)

@@ -150,6 +150,23 @@ fn driven_theta0(kind: DriveKind, theta0: f64, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
+/// The spec of a rollout of `kind` at length `l` from `th`, its drive
+/// drawn from `rng` for the set's physics.
+fn driven_spec(
+    kind: DriveKind,
+    l: f64,
+    th: f64,
+    physics: Physics,
+    rng: &mut ChaCha8Rng,
+) -> DrivenSpec {
+    let p = Pendulum {
+        g: physics.g,
+        ..Pendulum::of(physics.rig, l)
+    };
+    let d = Drive::draw(kind, &p, physics.steps, physics.dt, rng);
+    (l, th, Vec::new(), Some((kind, d)))
+}
+
 /// A driven training set: `per_length` rollouts at each length, the
 /// families of `drives` taking turns, `theta_0` uniform in `theta0` (or
 /// near hanging, [`driven_theta0`]), each drive drawn after its angle from
@@ -174,15 +191,7 @@ pub fn driven_training_set(
             turn += 1;
             let th = rng.random_range(theta0[0]..=theta0[1]);
             let th = driven_theta0(kind, th, &mut rng);
-            let p = Pendulum::of(physics.rig, l);
-            let d = Drive::draw(
-                kind,
-                &Pendulum { g: physics.g, ..p },
-                physics.steps,
-                physics.dt,
-                &mut rng,
-            );
-            specs.push((l, th, Vec::new(), Some((kind, d))));
+            specs.push(driven_spec(kind, l, th, physics, &mut rng));
         }
     }
     make_driven("train", seed, specs, physics)
@@ -204,15 +213,7 @@ pub fn driven_test_set(
         for &kind in drives {
             for k in 0..TEST_PER_LENGTH {
                 let th = driven_theta0(kind, PI / 2.0 + k as f64 * 0.4 * PI / 9.0, &mut rng);
-                let p = Pendulum::of(physics.rig, l);
-                let d = Drive::draw(
-                    kind,
-                    &Pendulum { g: physics.g, ..p },
-                    physics.steps,
-                    physics.dt,
-                    &mut rng,
-                );
-                specs.push((l, th, Vec::new(), Some((kind, d))));
+                specs.push(driven_spec(kind, l, th, physics, &mut rng));
             }
         }
     }
