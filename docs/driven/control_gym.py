@@ -10,7 +10,7 @@ answers. Balanced: the last 100 steps within 0.2 rad of the upright at under
 reads, with the true length (`--length L`), and with 3.5 m for every rod.
 
     /work/venv-driven/bin/python docs/driven/control_gym.py \
-        [--weights weights/pendulum-bilinear-driven.kkf] [--lengths 2,3,4,5] \
+        [--weights weights/pendulum-bilinear.kkf] [--lengths 2,3,4,5] \
         [--starts 5] [--seed 1] [--json OUT] [--trace DIR]
     .../control_gym.py --picture docs/control-swing-up.png   # one run, drawn
 """
@@ -63,7 +63,7 @@ def run(koopman, weights, length, theta0, fixed=None, steps=600, plot=None):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--koopman", default="target/release/koopman")
-    ap.add_argument("--weights", default="weights/pendulum-bilinear-driven.kkf")
+    ap.add_argument("--weights", default="weights/pendulum-bilinear.kkf")
     ap.add_argument("--lengths", default="2,3,4,5")
     ap.add_argument("--starts", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)

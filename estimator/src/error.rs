@@ -56,6 +56,9 @@ pub enum Error {
     /// A source interval that is not finite and positive
     /// ([`Estimator::with_source_interval`](crate::Estimator::with_source_interval)).
     InputBadInterval,
+    /// A torque limit that is not finite and positive
+    /// ([`Pilot::new`](crate::control::Pilot::new)).
+    InputBadTorqueLimit,
 }
 
 impl Error {
@@ -83,6 +86,7 @@ impl Error {
             Error::FilterNotStarted => "filter: no first measurement to predict from",
             Error::InputBadGravity => "input: gravity must be finite and positive",
             Error::InputBadInterval => "input: the source interval must be finite and positive",
+            Error::InputBadTorqueLimit => "input: the torque limit must be finite and positive",
         }
     }
 }

@@ -1,10 +1,11 @@
-//! The controller (`estimator::control`) on the project's own simulator
-//! (the protocol's rod, RK4): given each rod's true length it swings it up
-//! from rest near hanging and balances it, within the control
-//! environment's 2 N m, in 600 steps of 0.05 s (30 s).
+//! Control (`estimator::control`) on the project's own simulator (the
+//! protocol's rod, RK4): from rest near hanging, within the control
+//! environment's 2 N m, in 600 steps of 0.05 s (30 s), the controller
+//! given each rod's true length, and the pilot reading it as it goes.
 
-use estimator::Rig;
-use estimator::control::Controller;
+use estimator::control::{Controller, Phase, Pilot};
+use estimator::{Model, Rig};
+use host_tests::root;
 use trainer_core::physics::Pendulum;
 
 /// `x` wrapped into `(-pi, pi]`.
@@ -13,12 +14,68 @@ fn wrap(x: f64) -> f64 {
     x - tau * ((x + std::f64::consts::PI) / tau).floor()
 }
 
-/// Balanced as the control issue counts it: the last 100 steps within
-/// 0.2 rad of the upright at under 1 rad/s. The bar, 8 of the 9: the
-/// pumping aims 2% above the upright's energy for the control
-/// environment's integrator (semi-implicit Euler, which loses energy),
-/// and on this energy-keeping RK4 the 4 m rod, held within 0.1 rad by
-/// 2 N m, can arrive too fast to catch (measured: 8 of 9).
+/// Whether the states are balanced as the control issue counts it:
+/// within 0.2 rad of the upright at under 1 rad/s.
+fn balanced(last: &[[f64; 2]]) -> bool {
+    last.iter()
+        .all(|s| wrap(s[0] - std::f64::consts::PI).abs() < 0.2 && s[1].abs() < 1.0)
+}
+
+/// The pilot with `weights/pendulum-bilinear.kkf` (the control issue's
+/// blob) reads each rod's length on the coast it sets up and swings it up
+/// with it: the length within 5% of the truth on all 9 runs (measured:
+/// within 1.5%), and balanced over the last 100 steps on at least 8 of 9
+/// (the true length's bar, below; measured: 9 of 9). The torque during the
+/// coast is zero, the length is held after it, and the coast is found to
+/// move continuously (the project's RK4, not a stepped rig).
+#[test]
+fn the_pilot_reads_rods_of_2_to_4_m_and_balances_them() {
+    let bytes = std::fs::read(root().join("weights/pendulum-bilinear.kkf")).unwrap();
+    let model = Model::from_bytes(&bytes).unwrap();
+    let (mut balanced_runs, mut read_runs) = (0, 0);
+    let mut report = Vec::new();
+    for length in [2.0f64, 3.0, 4.0] {
+        for theta0 in [-0.08f64, 0.03, 0.09] {
+            let rod = Pendulum::new(length);
+            let mut pilot = Pilot::new(&model, 10.0, 2.0).unwrap();
+            let mut x = [theta0, 0.0];
+            let (mut last, mut held) = (Vec::new(), None);
+            let mut c = None;
+            for k in 0..600 {
+                let out = pilot.step(&[x[0] as f32, x[1] as f32]).unwrap();
+                assert!(out.torque.abs() <= 2.0, "{length} m: torque {}", out.torque);
+                if matches!(out.phase, Phase::Read(_)) {
+                    assert_eq!(out.torque, 0.0, "a torque on the coast");
+                } else if let Some(h) = held {
+                    assert_eq!(out.length, h, "the length moved after the read");
+                }
+                if pilot.phase() == Phase::SwingUp && held.is_none() {
+                    held = Some(out.length);
+                    assert_eq!(pilot.stepped_rig(), Some(false), "{length} m");
+                }
+                x = rod.step(x, f64::from(out.torque), 0.05);
+                if k >= 500 {
+                    last.push(x);
+                }
+                c = Some(out);
+            }
+            let read = f64::from(c.unwrap().length);
+            let ok = balanced(&last);
+            let within = (read - length).abs() <= 0.05 * length;
+            balanced_runs += usize::from(ok);
+            read_runs += usize::from(within);
+            report.push((length, theta0, read, ok));
+        }
+    }
+    eprintln!("pilot runs (length, start, read, balanced): {report:?}");
+    assert_eq!(read_runs, 9, "{report:?}");
+    assert!(balanced_runs >= 8, "{report:?}");
+}
+
+/// Given each rod's true length, the controller alone (a continuous rig:
+/// the pumping keeps the plain energy) balances rods of 2, 3 and 4 m over
+/// the last 100 steps. The bar, 8 of the 9 (measured: 9 of 9): one start
+/// may arrive at the upright faster than 2 N m can catch.
 #[test]
 fn given_the_true_length_rods_of_2_to_4_m_are_swung_up_and_balanced() {
     let mut balanced_runs = 0;
@@ -37,16 +94,14 @@ fn given_the_true_length_rods_of_2_to_4_m_are_swung_up_and_balanced() {
                     last.push(x);
                 }
             }
-            let balanced = last
-                .iter()
-                .all(|s| wrap(s[0] - std::f64::consts::PI).abs() < 0.2 && s[1].abs() < 1.0);
-            if balanced {
+            if balanced(&last) {
                 balanced_runs += 1;
             } else {
                 failed.push((length, theta0, x));
             }
         }
     }
+    eprintln!("given the true length: {balanced_runs} of 9 balanced");
     assert!(
         balanced_runs >= 8,
         "{balanced_runs} of 9 balanced; not: {failed:?}"

@@ -12,7 +12,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use estimator::control::Controller;
+use estimator::control::Pilot;
 use estimator::{Estimator, Model, Trust};
 use host_tests::{rig_blob, root, shipped_blob};
 use trainer_core::bench::rig_window;
@@ -105,41 +105,28 @@ fn driven_rollouts() -> Vec<(u32, Vec<[f32; 3]>)> {
         .collect()
 }
 
-/// The length the controller uses where the estimate is no length yet, m
-/// (the firmware's `CONTROL_FALLBACK`).
-const CONTROL_FALLBACK: f32 = 3.5;
-
-/// Steps of the recorded swing-up.
-const SWING_UP_STEPS: usize = 256;
+/// Steps of the recorded swing-up: the excitation, the coast's read and
+/// the catch of a 3 m rod.
+const SWING_UP_STEPS: usize = 400;
 
 /// A swing-up recorded on the host: a 3 m rod from rest at 0.05 rad on the
-/// project's RK4, each measurement (as `f32`) stepped through the driven
-/// blob with the torque before it and the controller's torque at the
-/// length read applied over the next 0.05 s. Rows `(theta, theta_dot, u)`;
+/// project's RK4, each measurement (as `f32`) given to a [`Pilot`] of
+/// `weights/pendulum-bilinear.kkf` at g 10 and 2 N m (the firmware's) and
+/// its torque applied over the next 0.05 s. Rows `(theta, theta_dot, u)`;
 /// rollout id 0.
 fn swing_up() -> Vec<(u32, Vec<[f32; 3]>)> {
-    let bytes = driven_blob();
+    let bytes = std::fs::read(root().join("weights/pendulum-bilinear.kkf")).unwrap();
     let model = Model::from_bytes(&bytes).unwrap();
-    let body = &model.blob().body;
-    let mut est = Estimator::new(&model).at_trained_gravity();
-    let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
+    let dt = model.blob().body.dt;
+    let mut pilot = Pilot::new(&model, 10.0, 2.0).unwrap();
     let rod = Pendulum::new(3.0);
     let mut x = [0.05f64, 0.0];
-    let mut held = 0.0f32;
     let mut rows = Vec::new();
     for _ in 0..SWING_UP_STEPS {
         let m = [x[0] as f32, x[1] as f32];
-        let out = est.step_driven(&m, held).unwrap();
-        let read = out.params[0];
-        let length = if read.is_finite() && read > 0.0 {
-            read
-        } else {
-            CONTROL_FALLBACK
-        };
-        let u = ctl.torque(&m, length);
+        let u = pilot.step(&m).unwrap().torque;
         rows.push([m[0], m[1], u]);
-        x = rod.step(x, f64::from(u), f64::from(body.dt));
-        held = u;
+        x = rod.step(x, f64::from(u), f64::from(dt));
     }
     vec![(0, rows)]
 }
@@ -437,6 +424,17 @@ fn firmware_in_qemu_matches_the_host() {
         assert_eq!(u.to_bits(), row[2].to_bits(), "{line}: host {}", row[2]);
         compared += 1;
     }
+    // And the lengths the host's pilot read from them.
+    let bytes = std::fs::read(root().join("weights/pendulum-bilinear.kkf")).unwrap();
+    let model = Model::from_bytes(&bytes).unwrap();
+    let mut pilot = Pilot::new(&model, 10.0, 2.0).unwrap();
+    for (line, row) in ctl.iter().zip(&recorded[0].1) {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        let length = f32::from_bits(u32::from_str_radix(w[4], 16).unwrap());
+        let host = pilot.step(&[row[0], row[1]]).unwrap().length;
+        assert_eq!(length.to_bits(), host.to_bits(), "{line}: host {host}");
+        compared += 1;
+    }
     // The test rollouts at L = 0.5 and 1 are untrusted with reasons, so
     // the reasons were compared, not only the empty lists.
     assert!(reasons_seen > 0, "no step with reasons compared");
@@ -476,11 +474,15 @@ fn report_sizes_and_costs(lines: &[&str], compared: usize, worst: f32) {
     eprintln!("firmware: {compared} values equal the host's, largest difference {worst:e}");
     eprintln!("firmware: {sizes}");
     if let Some(l) = lines.iter().find(|l| l.starts_with("control steps")) {
-        let n: u64 = field(l, "steps").parse().unwrap();
-        let t: u64 = field(l, "ticks").parse().unwrap();
-        eprintln!(
-            "firmware: {l}\n  => instructions per control step (the controller alone, the swing-up): {}",
+        let per_step = |steps: &str, ticks: &str| {
+            let n: u64 = field(l, steps).parse().unwrap();
+            let t: u64 = field(l, ticks).parse().unwrap();
             t * INSTRUCTIONS_PER_TICK / n.max(1)
+        };
+        eprintln!(
+            "firmware: {l}\n  => instructions per control step: {} exciting and swinging up (the controller alone), {} reading on the coast (an estimator step each)",
+            per_step("steps", "ticks"),
+            per_step("read_steps", "read_ticks")
         );
     }
     for key in ["stack used", "rig sizes", "rig stack used"] {

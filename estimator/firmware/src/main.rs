@@ -31,7 +31,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 use estimator::blob::Aligned;
-use estimator::control::Controller;
+use estimator::control::{Phase, Pilot};
 use estimator::{Estimator, Model, Trust};
 
 mod rollouts {
@@ -48,6 +48,14 @@ static RIG_BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig
 static DRIVEN_BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!(
     "../../../weights/pendulum-bilinear-driven.kkf"
 ));
+
+/// The blob the swing-up reads its length with (the control issue's).
+static CONTROL_BLOB: &Aligned<[u8]> =
+    &Aligned(*include_bytes!("../../../weights/pendulum-bilinear.kkf"));
+/// The swing-up's gravity, m/s^2, and torque limit, N m: the control
+/// environment's (the host's test records with the same).
+const CONTROL_G: f32 = 10.0;
+const CONTROL_MAX_TORQUE: f32 = 2.0;
 
 /// Measurements in the protocol's estimation window: updates `1..WINDOW`
 /// are timed apart from the later ones.
@@ -368,70 +376,69 @@ fn run_driven(line: &mut Line) -> bool {
     true
 }
 
-/// The length the controller uses where the estimate is no length yet, m
-/// (the host's test uses the same).
-const CONTROL_FALLBACK: f32 = 3.5;
-
 /// A recorded swing-up (`swing-up.bin`: the states and the torques the
-/// host's estimator and controller applied) stepped again here: each
-/// measurement with the torque before it, then the controller's torque
-/// at the length read, printed (`ctl`) and timed alone.
+/// host's [`Pilot`] applied) stepped again here through a `Pilot` of the
+/// same blob: each step's torque and length printed (`ctl`), its
+/// instructions summed apart for the coast's reading steps (an estimator
+/// step each) and the others (the controller alone).
 #[inline(never)]
 fn run_control(line: &mut Line) -> bool {
-    let model = match Model::from_bytes(&DRIVEN_BLOB.0) {
+    let model = match Model::from_bytes(&CONTROL_BLOB.0) {
         Ok(m) => m,
         Err(e) => {
-            line.str("error: driven blob refused: ")
+            line.str("error: control blob refused: ")
                 .str(e.message())
                 .send();
             return false;
         }
     };
-    let body = &model.blob().body;
-    let mut est = Estimator::new(&model).at_trained_gravity();
-    let mut ctl = Controller::new(body.rig, body.g, 2.0, body.dt);
-    let (mut ticks_sum, mut steps) = (0u64, 0u64);
+    let mut pilot = match Pilot::new(&model, CONTROL_G, CONTROL_MAX_TORQUE) {
+        Ok(p) => p,
+        Err(e) => {
+            line.str("error: pilot refused: ").str(e.message()).send();
+            return false;
+        }
+    };
+    // (steps, ticks) of the controller alone and of the reading steps.
+    let (mut ctl, mut read) = ((0u64, 0u64), (0u64, 0u64));
     for (id, rows) in &rollouts::SWING_UP {
-        // The torque held before each measurement (none before the first).
-        let mut held = 0.0f32;
         for (k, r) in rows.iter().enumerate() {
             let x = [r[0], r[1]];
-            let out = est.step_driven(&x, held);
-            let out = match out {
-                Ok(o) => o,
+            let before = SYST::get_current();
+            let out = pilot.step(&x);
+            let after = SYST::get_current();
+            let c = match out {
+                Ok(c) => c,
                 Err(e) => {
                     line.str("error: step refused: ").str(e.message()).send();
                     return false;
                 }
             };
-            let read = out.params[0];
-            let length = if read.is_finite() && read > 0.0 {
-                read
+            let sum = if matches!(c.phase, Phase::Read(_)) {
+                &mut read
             } else {
-                CONTROL_FALLBACK
+                &mut ctl
             };
-            let before = SYST::get_current();
-            let u = ctl.torque(&x, length);
-            let after = SYST::get_current();
-            ticks_sum += u64::from(ticks(before, after));
-            steps += 1;
+            sum.0 += 1;
+            sum.1 += u64::from(ticks(before, after));
             line.str("ctl ")
                 .uint(u64::from(*id))
                 .str(" ")
                 .uint(k as u64)
                 .str(" ");
-            line.hex(u);
-            line.hex(length);
+            line.hex(c.torque);
+            line.hex(c.length);
             line.send();
-            // The recorded torque is what the host applied: the next
-            // measurement follows it.
-            held = r[2];
         }
     }
     line.str("control steps=")
-        .uint(steps)
+        .uint(ctl.0)
         .str(" ticks=")
-        .uint(ticks_sum)
+        .uint(ctl.1)
+        .str(" read_steps=")
+        .uint(read.0)
+        .str(" read_ticks=")
+        .uint(read.1)
         .send();
     true
 }

@@ -4,24 +4,23 @@
 //! Standard input: one line per measurement, `theta,theta_dot` (rad,
 //! rad/s; theta from hanging), at the blob's interval. Standard output: one
 //! line per input line, `u,length` (the torque to hold until the next line,
-//! N m, within the limit; the length read so far, m), flushed at once. The
-//! estimator is told each torque it applied ([`estimator::Estimator::step_driven`]);
-//! the controller ([`estimator::control`]) uses the length it reads.
+//! N m, within the limit; the length read so far, m), flushed at once. A
+//! [`Pilot`] runs it: it excites a swing, reads the length while the rod
+//! coasts free, then swings it up and balances it with that length.
 
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use estimator::Estimator;
-use estimator::control::Controller;
+use estimator::control::{Command, Phase, Pilot};
 
 /// Swings up and balances a pendulum through a line protocol: reads
 /// `theta,theta_dot` per line on stdin, writes `u,length` per line on
 /// stdout.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Weights blob (one that learned the torque's `B`, e.g.
-    /// `weights/pendulum-bilinear-driven.kkf`).
+    /// Weights blob (e.g. `weights/pendulum-bilinear.kkf`): it reads the
+    /// length on a free coast, so it needs no `B`.
     #[arg(long)]
     weights: PathBuf,
     /// Gravity of the rig, m/s^2.
@@ -49,12 +48,6 @@ pub fn run(a: Args) -> Result<()> {
     );
     let bytes = super::read_blob(&a.weights)?;
     let model = super::model(&a.weights, &bytes)?;
-    if !model.is_driven() {
-        eprintln!(
-            "{}: a blob without the torque's B: the estimate is read as if the pendulum were free",
-            a.weights.display()
-        );
-    }
     let stdin = std::io::stdin();
     let stdout = std::io::stdout();
     let fixed = a.length.map(|l| l as f32);
@@ -166,15 +159,11 @@ pub fn control(
     mut output: impl Write,
 ) -> Result<Vec<Row>> {
     let mut run = Vec::new();
-    let body = &model.blob().body;
-    let mut est = Estimator::new(model).with_gravity(g)?;
-    let mut ctl = Controller::new(body.rig, g, max_torque, body.dt);
-    // Where the estimate is no length yet: the middle of the trained range.
-    let [lo, hi] = body.params[0].train_range;
-    let fallback = 0.5 * (lo + hi) * g / body.g;
-    // The torque held before each measurement (none before the first;
-    // `step_driven(x, 0)` is `step(x)`).
-    let mut held = 0.0f32;
+    let mut pilot = Pilot::new(model, g, max_torque)?;
+    if let Some(l) = fixed {
+        pilot = pilot.with_length(l);
+    }
+    let mut told = false;
     for (k, line) in input.lines().enumerate() {
         let n = k + 1;
         let line = line.with_context(|| format!("line {n}: cannot read"))?;
@@ -183,22 +172,39 @@ pub fn control(
             continue;
         }
         let x = parse(text).with_context(|| format!("line {n}: {text:?}"))?;
-        let out = est
-            .step_driven(&x, held)
+        let c = pilot
+            .step(&x)
             .map_err(|e| anyhow::anyhow!("line {n}: {e}"))?;
-        let read = out.params[0];
-        let length = if read.is_finite() && read > 0.0 {
-            read
-        } else {
-            fallback
-        };
-        let u = ctl.torque(&x, fixed.unwrap_or(length));
-        writeln!(output, "{u},{length}")?;
+        writeln!(output, "{},{}", c.torque, c.length)?;
         output.flush()?;
-        held = u;
-        run.push([x[0], u, length, out.param_std[0]]);
+        if !told && pilot.phase() == Phase::SwingUp {
+            told = true;
+            eprintln!("{}", read_line(n, &c, &pilot));
+        }
+        run.push([x[0], c.torque, c.length, c.length_std]);
     }
     Ok(run)
+}
+
+/// The stderr line at the end of the read: the length, its std and the
+/// verdict with its reasons.
+fn read_line(n: usize, c: &Command, pilot: &Pilot<'_>) -> String {
+    let verdict = match pilot.trust() {
+        Some(t) if t.is_untrusted() => {
+            let why: Vec<String> = t.reasons().iter().map(|r| r.to_string()).collect();
+            format!("untrusted ({})", why.join(", "))
+        }
+        Some(t) => t.as_str().to_string(),
+        None => "no verdict".to_string(),
+    };
+    let rig = match pilot.stepped_rig() {
+        Some(true) => "stepped by semi-implicit Euler",
+        _ => "moving continuously",
+    };
+    format!(
+        "line {n}: length read on the coast {:.3} +- {:.3} m, {verdict}; the rig {rig}; swinging up with it",
+        c.length, c.length_std
+    )
 }
 
 /// `theta,theta_dot` as two finite numbers.
