@@ -18,6 +18,8 @@
 //! - [`Trust`], [`Reason`]: the verdict, and why.
 //! - [`Rig`]: which length the motion is read as (a string's or a rod's).
 //! - [`Error`]: every way a blob or a measurement is refused.
+//! - [`control::Pilot`]: swings a pendulum up and balances it while
+//!   reading its length.
 //!
 //! # Examples
 //!
