@@ -29,7 +29,7 @@ mod update;
 
 pub use output::{CheckReport, FilterReport, Readers, StepOutput};
 
-use crate::swing::{Centre, Decay, Early, Fit, Growth, Period};
+use crate::swing::{Centre, Decay, Early, Energy, Fit, Growth, Period};
 
 use crate::kalman::kernels::tail;
 use crate::kalman::{AugMatrix, AugVector, Kalman};
@@ -107,6 +107,8 @@ pub struct Estimator<'m> {
     outlier: bool,
     /// Whether a half swing grew (a drive not declared).
     growth: Growth,
+    /// Whether the swing's energy moved (a drive not declared).
+    energy: Energy,
     /// A torque was applied since the start ([`Reason::Driven`](crate::Reason::Driven)).
     driven: bool,
     /// The last update's normalised innovation squared, where formed.
@@ -148,6 +150,7 @@ impl<'m> Estimator<'m> {
             outlier: false,
             driven: false,
             growth: Growth::default(),
+            energy: Energy::default(),
             innovation: None,
             source_dt: 0.0,
             burn_until: 0,

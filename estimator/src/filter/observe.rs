@@ -100,6 +100,9 @@ impl Estimator<'_> {
         } else {
             let was = self.centre.subtracting();
             let [x, _] = centred;
+            if self.undamped() {
+                self.energy.push(x, rate, dt);
+            }
             self.period.push(x);
             self.early.push(theta);
             self.fit.push(theta, dt);

@@ -243,7 +243,9 @@ impl Estimator<'_> {
             even: unevenness.is_none_or(|u| u <= calib.max_unevenness),
             gravity_known: self.g_known,
             source_ok: self.source_ok(length, calib.min_samples_per_period),
-            steady: !self.growth.grew() || !self.samples_per_period(length).is_some_and(|n| n >= GROWTH_MIN_SAMPLES),
+            steady: (!self.growth.grew()
+                || !self.samples_per_period(length).is_some_and(|n| n >= GROWTH_MIN_SAMPLES))
+                && !self.energy_moved(),
             free: !(self.driven || self.model.is_driven()),
             period_confirms: false,
         };
@@ -286,6 +288,19 @@ impl Estimator<'_> {
                 unevenness,
             },
         }
+    }
+
+    /// Whether the swing's energy moved with no torque declared, for a
+    /// blob that models no dissipation (its second parameter not
+    /// declared): one that does reads a decay, which moves the energy.
+    fn energy_moved(&self) -> bool {
+        self.undamped() && !self.driven && self.energy.moved()
+    }
+
+    /// Whether the blob models no dissipation (its second parameter not
+    /// declared): the swing's energy is read only then.
+    pub(super) fn undamped(&self) -> bool {
+        !self.model.blob().body.params.get(1).is_some_and(|s| s.declared)
     }
 
     /// Whether the declared source gives at least `min_samples` samples a

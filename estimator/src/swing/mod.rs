@@ -18,6 +18,7 @@
 pub(crate) mod centre;
 pub(crate) mod decay;
 pub(crate) mod early;
+pub(crate) mod energy;
 pub(crate) mod fit;
 pub(crate) mod growth;
 pub(crate) mod period;
@@ -26,6 +27,7 @@ pub(crate) mod window;
 pub(crate) use centre::{Centre, REOPEN_SHARE};
 pub(crate) use decay::Decay;
 pub(crate) use early::Early;
+pub(crate) use energy::Energy;
 pub(crate) use fit::Fit;
 pub(crate) use growth::Growth;
 pub(crate) use period::Period;

@@ -98,7 +98,7 @@ pub(crate) const VERDICT_REL_STD: f32 = 0.05;
 /// | [`Reason::RateMismatch`] | the measured rate departs from the angle's change over the blob's interval by more than the blob allows, from the [`WINDOW`](crate::WINDOW)-th update on | another interval, a rate in other units |
 /// | [`Reason::GravityUndeclared`] | a parameter the dynamics see only through `g / p` is reported and no gravity was declared | a length read at the blob's g, which no measurement can confirm |
 /// | [`Reason::CoarseSource`] | the source was sampled fewer times a period, at the length read, than the blob's calibration covers (declared with [`Estimator::with_source_interval`](crate::Estimator::with_source_interval)) | a slow camera upsampled by the import |
-/// | [`Reason::Growing`] | a half swing grew wider than one before it by more than the tracker's noise and the sampling's phase allow ([`crate::swing`]'s growth) | a drive the model was not told of: a free pendulum only loses energy |
+/// | [`Reason::Growing`] | a half swing grew wider than one before it by more than the tracker's noise and the sampling's phase allow ([`crate::swing`]'s growth); or, for a blob that models no dissipation, with no torque declared, the swing's energy moved (at the `a = 1 / (2 w0^2)` that keeps it most constant, by more than 0.1% of it) | a drive the model was not told of: a free pendulum only loses energy, and one without dissipation keeps it |
 /// | [`Reason::Driven`] | a torque was applied ([`Estimator::step_driven`](crate::Estimator::step_driven)) since the start, or the blob models one ([`Model::is_driven`](crate::Model::is_driven)): every check above is calibrated on free swings, a drive moves the period, the envelope and the swing the checks read, and a drive not declared to a driven model reads as free | a verdict no held-out rollout vouches for |
 ///
 /// The checks of how well the model fits the swing (`Unsettled`,
@@ -143,7 +143,8 @@ pub enum Reason {
     /// covers, or, coarser than the blob's interval, has not yet given a
     /// window of its own samples.
     CoarseSource,
-    /// A half swing grew: a drive the model was not told of.
+    /// A half swing grew, or an undamped model's swing changed its energy:
+    /// a drive the model was not told of.
     Growing,
     /// Torques were applied, or the model is of a driven pendulum: the
     /// verdict's checks are calibrated on free swings only.
@@ -183,7 +184,7 @@ impl Reason {
             Reason::RateMismatch => "rate does not match the angle: another interval or unit",
             Reason::GravityUndeclared => "g not declared: length read at the blob's g",
             Reason::CoarseSource => "source coarser than the blob's calibration",
-            Reason::Growing => "swing grew: a drive the model does not know",
+            Reason::Growing => "swing grew or its energy moved: a drive the model does not know",
             Reason::Driven => "driven: the verdict is calibrated on free swings only",
         }
     }
