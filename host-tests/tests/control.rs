@@ -24,7 +24,7 @@ fn balanced(last: &[[f64; 2]]) -> bool {
 /// The pilot with `weights/pendulum-bilinear.kkf` (the control issue's
 /// blob) reads each rod's length on the coast it sets up and swings it up
 /// with it: the length within 5% of the truth on all 9 runs (measured:
-/// within 1.5%), and balanced over the last 100 steps on at least 8 of 9
+/// within 1.9%), and balanced over the last 100 steps on at least 8 of 9
 /// (the true length's bar, below; measured: 9 of 9). The torque during the
 /// coast is zero, the length is held after it, and the coast is found to
 /// move continuously (the project's RK4, not a stepped rig).

@@ -35,7 +35,7 @@ fn control(extra: &[&str]) -> std::process::Child {
 /// the replies: each reply is two numbers, the torque within 2 N m; the
 /// excitation swings the rod past 1.8 rad (from rest at 0.05 rad nothing
 /// but the torques moves it); the coast's 64 torques are zero; the length
-/// read on it is within 5% of 3 m (measured: 2.96 m) and held from then
+/// read on it is within 5% of 3 m and held from then
 /// on; stderr says what was read.
 #[test]
 fn a_short_swing_up_through_the_line_protocol() {
