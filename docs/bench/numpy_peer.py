@@ -3,7 +3,7 @@
 
 The peer is the textbook extended Kalman filter a researcher would write
 in numpy for the rig blob's model, at the blob's sizes (its hidden width
-read from its header; the weights drawn at a trained blob's scale, as a
+read from its sidecar; the weights drawn at a trained blob's scale, as a
 dense numpy step's time does not depend on their values): the encoder
 (2 -> H -> H -> 16, ReLU), the bilinear prediction `F(q) y` with
 `F(q) = F_0 + q_1 F_1 + q_2 F_2 + q_1^2 F_11`, its Jacobian, `P = J P J^T +
@@ -33,26 +33,11 @@ S, L, P_DIM = 2, 16, 2
 AUG = L + P_DIM
 
 
-def varint(b, i):
-    v, s = 0, 0
-    while True:
-        x = b[i]
-        i += 1
-        v |= (x & 0x7F) << s
-        s += 7
-        if not x & 0x80:
-            return v, i
-
-
 def hidden_width(path):
-    """The blob's hidden width, from its header (docs/blob-format.md)."""
-    b = open(path, "rb").read()
-    i = 4
-    dims = []
-    for _ in range(6):  # version, state, latent, param, hidden, input
-        v, i = varint(b, i)
-        dims.append(v)
-    return dims[4]
+    """The blob's hidden width, from the sidecar `koopman export` writes
+    beside it (`weights/NAME.json`: its training config)."""
+    sidecar = path.rsplit(".", 1)[0] + ".json"
+    return int(json.load(open(sidecar))["config"]["hidden"])
 
 
 def peer_weights(hidden, seed=0):
@@ -130,26 +115,14 @@ def main():
     a = ap.parse_args()
     hidden = hidden_width(a.weights)
     step = make_step(peer_weights(hidden))
-    ours = json.loads(
-        subprocess.run(
-            [a.koopman, "bench", "--weights", a.weights, "--seconds", str(a.seconds), "--json"],
-            check=True,
-            capture_output=True,
-            text=True,
-        ).stdout
-    )
+    bench = [a.koopman, "bench", "--weights", a.weights, "--seconds", str(a.seconds), "--json"]
+    ours_ns = lambda: json.loads(subprocess.run(bench, check=True, capture_output=True, text=True).stdout)["step_ns"]
+    before = ours_ns()
     peer = time_peer(step, a.seconds)
-    ours_again = json.loads(
-        subprocess.run(
-            [a.koopman, "bench", "--weights", a.weights, "--seconds", str(a.seconds), "--json"],
-            check=True,
-            capture_output=True,
-            text=True,
-        ).stdout
-    )
-    step_ns = 0.5 * (ours["step_ns"] + ours_again["step_ns"])
+    after = ours_ns()
+    step_ns = 0.5 * (before + after)
     print(f"blob {a.weights} (hidden {hidden}); numpy {np.__version__}, Python {sys.version.split()[0]}")
-    print(f"estimator step (koopman bench, before and after the peer): {ours['step_ns']:.0f} / {ours_again['step_ns']:.0f} ns")
+    print(f"estimator step (koopman bench, before and after the peer): {before:.0f} / {after:.0f} ns")
     print(f"numpy peer step (the filter alone): {peer:.0f} ns")
     print(f"ratio: {peer / step_ns:.1f}x")
 

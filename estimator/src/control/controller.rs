@@ -114,7 +114,8 @@ impl Controller {
         let [theta, rate] = *x;
         let phi = wrap(theta - core::f32::consts::PI);
         let near = libm::fabsf(phi) < CATCH_ANGLE && libm::fabsf(rate) < CATCH_RATE;
-        let mut u = self.pump(theta, rate, length);
+        let (e, upright) = self.energy(theta, rate, length);
+        let mut u = self.pump(theta, rate, e, upright);
         if near {
             let [ka, kr] = self.gains(length);
             let hold = -(ka * phi + kr * rate);
@@ -123,7 +124,6 @@ impl Controller {
             // hold only has to slow it); held while the state stays in the
             // region. A rod short of that energy that the hold cannot hold
             // is pumped on.
-            let (e, upright) = self.energy(theta, rate, length);
             self.holding |= libm::fabsf(hold) <= self.max_torque || e >= upright;
             if self.holding {
                 u = hold;
@@ -178,9 +178,8 @@ impl Controller {
         (e, 2.0 * mgc)
     }
 
-    /// Energy pumping towards the upright's energy.
-    fn pump(&self, theta: f32, rate: f32, length: f32) -> f32 {
-        let (e, top) = self.energy(theta, rate, length);
+    /// Energy pumping from the energy `e` towards the upright's, `top`.
+    fn pump(&self, theta: f32, rate: f32, e: f32, top: f32) -> f32 {
         if libm::fabsf(rate) < AT_REST && e < top {
             return self.excite(&[theta, rate]);
         }
