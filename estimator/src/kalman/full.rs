@@ -3,8 +3,7 @@
 
 use super::Kalman;
 use super::kernels::{
-    Cov, LatentSquare, all_finite, combo, dot, inverse_from_ldl, ldl, mirror_upper, tail,
-    unit_lower_inverse, upper_rows,
+    Cov, LatentSquare, all_finite, combo, mirror_upper, tail, upper_rows,
 };
 use crate::blob::{Family, FilterSpec};
 use crate::model::{KoopmanColumns, Model};
@@ -178,9 +177,9 @@ fn predict_update_bilinear(
 /// innovation squared `nu^T S^-1 nu` to `nis`. (Not inlined: one frame for
 /// both families' callers, not one each.)
 ///
-/// Its buffers: `out` holds `N = C P` until `P` is written over it; one
-/// square holds `S` (upper triangle) and its factor `L` (below), and one
-/// holds `X = L^-1`, then `S^-1` in its place.
+/// `out` holds `N = C P` until the predicted `P'` is written over it, and
+/// then takes the update in place: `H = [I 0]` and `R` diagonal, so the
+/// update is [`LATENT_DIM`] scalar updates, one a latent (module docs).
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn predict_update_with(
@@ -197,154 +196,74 @@ fn predict_update_with(
 
     // Predict the mean: y' = C g (or F(q) y);  p' = p.
     let mut m = *mean;
-    let mut nu = *z;
-    for ((mi, v), yi) in m.iter_mut().zip(nu.iter_mut()).zip(y) {
+    for (mi, yi) in m.iter_mut().zip(y) {
         *mi = *yi;
-        *v -= yi;
     }
 
     // Predict the covariance: N = C P (the latent rows of F P, in `out`),
-    // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns),
-    // P'_pp = P_pp + Q_p.
+    // P'_yy = N C^T + Q_y,  P'_yp = N_p (N's p columns, in place),
+    // P'_pp = P_pp + Q_p; the upper triangle (the update keeps only it).
     let (n, _) = out
         .split_first_chunk_mut::<LATENT_DIM>()
         .ok_or(Error::BlobShapeMismatch)?;
     latent_rows_of_fp(ct, p, n);
-    let mut s = upper_of_nct(n, ct);
-    let mut pyp = [[0.0f32; PARAM_DIM]; LATENT_DIM];
-    for (dst, ni) in pyp.iter_mut().zip(n.iter()) {
-        *dst = *tail(ni);
+    let pyy = upper_of_nct(n, ct);
+    for (i, (row, pyy_i)) in out.iter_mut().zip(&pyy).enumerate() {
+        for (d, v) in row.iter_mut().zip(pyy_i).skip(i) {
+            *d = *v;
+        }
     }
-    let mut ppp = [[0.0f32; PARAM_DIM]; PARAM_DIM];
-    for (a, (dst, prow)) in ppp.iter_mut().zip(p.iter().skip(LATENT_DIM)).enumerate() {
-        *dst = *tail(prow);
-        let q = spec.q.get(LATENT_DIM + a).copied().unwrap_or(0.0);
-        if let Some(d) = dst.get_mut(a) {
+    for ((row, prow), i) in out.iter_mut().zip(p).zip(0..).skip(LATENT_DIM) {
+        for (d, v) in row.iter_mut().zip(prow).skip(i) {
+            *d = *v;
+        }
+    }
+    for ((i, row), q) in out.iter_mut().enumerate().zip(&spec.q) {
+        if let Some(d) = row.get_mut(i) {
             *d += q;
         }
     }
 
-    // S = H P' H^T + R = P'_yy + Q_y + R, factored as L D L^T (below the
-    // diagonal of `s`; S stays on and above it), and its inverse
-    // Si = X^T D^-1 X with X = L^-1.
-    for (i, srow) in s.iter_mut().enumerate() {
-        if let (Some(d), Some(q), Some(r)) = (srow.get_mut(i), spec.q.get(i), spec.r.get(i)) {
-            *d = (*d + q) + r;
+    // The update, one latent at a time (`R` diagonal, `H` a selection):
+    // for latent j, s_j = P_jj + R_j, k = P_j / s_j (P_j row j, which is
+    // column j), g += k (z_j - y_j), P -= k P_j^T. The innovations taken
+    // in turn are `nu` whitened by `S`'s factor, so the sum of
+    // (z_j - y_j)^2 / s_j is nu^T S^-1 nu. No matrix is inverted: each
+    // s_j is at least R_j.
+    let mut sum = 0.0f32;
+    // p's corrections and P_pp's decrements, summed over the 16 and taken
+    // once (no update reads p or P_pp): each is far below their last bit
+    // on a long run, and taken one by one, rounding would lose them.
+    let mut dp = [0.0f32; PARAM_DIM];
+    let mut dpp = [0.0f32; 3];
+    for (j, (zj, rj)) in z.iter().zip(&spec.r).enumerate() {
+        let pj = full_row(out, j);
+        let sj = pj.get(j).copied().unwrap_or(f32::NAN) + rj;
+        if !(sj > 0.0 && sj.is_finite()) {
+            return Err(Error::FilterNotPositiveDefinite);
         }
-    }
-    mirror_upper(&mut s);
-    let mut d_inv = [0.0f32; LATENT_DIM];
-    ldl(&mut s, &mut d_inv)?;
-    let mut si = unit_lower_inverse(&s);
-    inverse_from_ldl(&mut si, &d_inv);
-    // S whole again (its lower triangle from the upper): L is done with.
-    mirror_upper(&mut s);
-
-    // With the optimal gain K = P' H^T Si no K is formed:
-    // K_y = P'_yy Si = I - R Si and K_p = P'_py Si = M^T, M = Si P'_yp.
-    // Mean: y = y' + K_y nu = z - R Si nu;  p = p' + M^T nu.
-    let w = combo(nu.iter().copied().zip(&si));
-    // The normalised innovation squared, nu^T Si nu: how far the
-    // measurement lies from the prediction in the filter's own units.
-    *nis = dot(&nu, &w);
-    // M^T, row a = sum_k P'_yp[k][a] Si_k.
-    let mut mt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-    for (a, mta) in mt.iter_mut().enumerate() {
-        *mta = combo(
-            pyp.iter()
-                .map(|pk| pk.get(a).copied().unwrap_or(0.0))
-                .zip(&si),
-        );
-    }
-    for (((mi, zi), ri), wi) in m.iter_mut().zip(z).zip(&spec.r).zip(&w) {
-        *mi = zi - ri * wi;
-    }
-    for (mi, mta) in m.iter_mut().skip(LATENT_DIM).zip(&mt) {
-        *mi += dot(mta, &nu);
-    }
-
-    // Covariance by blocks. Joseph's form
-    // P = (I - K H) P' (I - K H)^T + K R K^T, with I - K H =
-    // [R Si, 0; -M^T, I], gives, using S M (T below):
-    //   P_yp = 2 R M - R Si S M,
-    //   P_pp = P'_pp - M^T P'_yp - P'_py M + M^T S M,
-    // which an error in Si (or M) changes only to second order: this
-    // keeps P positive definite when S is ill conditioned. For P_yy
-    // the standard form R - R Si R is kept (its Joseph form costs
-    // two more 16^3 products); it is exactly symmetric as Si is.
-    let mut tt = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-    for (a, tta) in tt.iter_mut().enumerate() {
-        // T^T row a = sum_k M[k][a] S_k (S symmetric).
-        *tta = combo(
-            mt.get(a)
-                .into_iter()
-                .flat_map(|mta| mta.iter().copied().zip(&s)),
-        );
-    }
-    // (Si T)^T row a = sum_k T[k][a] Si_k.
-    let mut sit = [[0.0f32; LATENT_DIM]; PARAM_DIM];
-    for (sita, tta) in sit.iter_mut().zip(&tt) {
-        *sita = combo(tta.iter().copied().zip(&si));
-    }
-    // P over N: N is done with.
-    for (i, (prow, si_row)) in out.iter_mut().zip(&si).enumerate() {
-        let ri = spec.r.get(i).copied().unwrap_or(0.0);
-        for (pij, (sij, rj)) in prow.iter_mut().zip(si_row.iter().zip(&spec.r)) {
-            *pij = -((ri * rj) * sij);
+        let inv = 1.0 / sj;
+        let e = zj - m.get(j).copied().unwrap_or(0.0);
+        sum += e * (e * inv);
+        let ke = e * inv;
+        for (mi, pji) in m.iter_mut().zip(&pj).take(LATENT_DIM) {
+            *mi += pji * ke;
         }
-        if let Some(d) = prow.get_mut(i) {
-            *d += ri;
+        for (d, pji) in dp.iter_mut().zip(tail(&pj)) {
+            *d += pji * ke;
         }
-        for (pij, (mta, sita)) in prow.iter_mut().skip(LATENT_DIM).zip(mt.iter().zip(&sit)) {
-            let m = mta.get(i).copied().unwrap_or(0.0);
-            let st = sita.get(i).copied().unwrap_or(0.0);
-            *pij = ri * (2.0 * m - st);
-        }
+        rank_one_upper(out, &pj, inv, &mut dpp);
     }
-    for (a, (prow, ppa)) in out.iter_mut().skip(LATENT_DIM).zip(&ppp).enumerate() {
-        let Some(mta) = mt.get(a) else {
-            continue;
-        };
-        for (b, (pab, mtb)) in prow.iter_mut().skip(LATENT_DIM).zip(&mt).enumerate() {
-            let (mut cross, mut quad) = (0.0f32, 0.0f32);
-            for (((pk, mka), mkb), tkb) in pyp
-                .iter()
-                .zip(mta)
-                .zip(mtb)
-                .zip(tt.get(b).into_iter().flatten())
-            {
-                let pka = pk.get(a).copied().unwrap_or(0.0);
-                let pkb = pk.get(b).copied().unwrap_or(0.0);
-                cross += mka * pkb + pka * mkb;
-                quad += mka * tkb;
-            }
-            *pab = ppa.get(b).copied().unwrap_or(0.0) - cross + quad;
-        }
+    for (mi, d) in m.iter_mut().skip(LATENT_DIM).zip(dp) {
+        *mi += d;
     }
-    // P_yy is exactly symmetric already (R_i R_j Si_ij, Si mirrored);
-    // the p rows take the transposes of the p columns, and the lower
-    // triangle of P_pp its upper one.
-    let (top, bottom) = out.split_at_mut(LATENT_DIM);
-    for (a, prow) in bottom.iter_mut().enumerate() {
-        for (dst, row) in prow.iter_mut().zip(top.iter()) {
-            *dst = row.get(LATENT_DIM + a).copied().unwrap_or(0.0);
-        }
-    }
-    for a in 1..PARAM_DIM {
-        for b in 0..a {
-            let upper = out
-                .get(LATENT_DIM + b)
-                .and_then(|r| r.get(LATENT_DIM + a))
-                .copied();
-            if let (Some(v), Some(d)) = (
-                upper,
-                out.get_mut(LATENT_DIM + a)
-                    .and_then(|r| r.get_mut(LATENT_DIM + b)),
-            ) {
-                *d = v;
-            }
-        }
-    }
+    let [.., [.., p00, p01], [.., p11]] = out;
+    let [d00, d01, d11] = dpp;
+    *p00 -= d00;
+    *p01 -= d01;
+    *p11 -= d11;
+    *nis = sum;
+    mirror_upper(out);
 
     // Is anything NaN or infinite?
     let finite = out.iter().fold(all_finite(&m), |ok, r| ok & all_finite(r));
@@ -364,6 +283,59 @@ fn predict_update_with(
         Ok(m)
     } else {
         Err(Error::FilterNotPositiveDefinite)
+    }
+}
+
+/// Row `j` of the symmetric `P` whose upper triangle `p` holds: entries
+/// before the diagonal from column `j` of the rows above.
+#[inline(always)]
+fn full_row(p: &Cov, j: usize) -> [f32; AUG_DIM] {
+    let mut r = p.get(j).copied().unwrap_or([0.0; AUG_DIM]);
+    for (d, row) in r.iter_mut().zip(p).take(j) {
+        *d = row.get(j).copied().unwrap_or(0.0);
+    }
+    r
+}
+
+/// `P -= (v / s) v^T` on the upper triangle of `p` (`inv` = `1 / s`):
+/// row `i` from its diagonal on, each row's length fixed at compile time;
+/// the `P_pp` block's share added to `dpp` (`[00, 01, 11]`) instead.
+#[inline(always)]
+fn rank_one_upper(p: &mut Cov, v: &[f32; AUG_DIM], inv: f32, dpp: &mut [f32; 3]) {
+    const _: () = assert!(AUG_DIM == 18);
+    let [r0, r1, r2, r3, r4, r5, r6, r7, r8, r9, r10, r11, r12, r13, r14, r15, r16, r17] = p;
+    let [v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12, v13, v14, v15, v16, v17] = *v;
+    row_tail::<18>(r0, v, v0 * inv);
+    row_tail::<17>(r1, v, v1 * inv);
+    row_tail::<16>(r2, v, v2 * inv);
+    row_tail::<15>(r3, v, v3 * inv);
+    row_tail::<14>(r4, v, v4 * inv);
+    row_tail::<13>(r5, v, v5 * inv);
+    row_tail::<12>(r6, v, v6 * inv);
+    row_tail::<11>(r7, v, v7 * inv);
+    row_tail::<10>(r8, v, v8 * inv);
+    row_tail::<9>(r9, v, v9 * inv);
+    row_tail::<8>(r10, v, v10 * inv);
+    row_tail::<7>(r11, v, v11 * inv);
+    row_tail::<6>(r12, v, v12 * inv);
+    row_tail::<5>(r13, v, v13 * inv);
+    row_tail::<4>(r14, v, v14 * inv);
+    row_tail::<3>(r15, v, v15 * inv);
+    let (k16, k17) = (v16 * inv, v17 * inv);
+    let [d00, d01, d11] = dpp;
+    *d00 += k16 * v16;
+    *d01 += k16 * v17;
+    *d11 += k17 * v17;
+    let _ = (r16, r17);
+}
+
+/// `row -= k v` on the last `W` entries.
+#[inline(always)]
+fn row_tail<const W: usize>(row: &mut [f32; AUG_DIM], v: &[f32; AUG_DIM], k: f32) {
+    if let (Some(d), Some(v)) = (row.last_chunk_mut::<W>(), v.last_chunk::<W>()) {
+        for (d, v) in d.iter_mut().zip(v) {
+            *d -= k * v;
+        }
     }
 }
 

@@ -23,13 +23,14 @@
 //! filter, which `trainer_core::reference` runs in f64 as the tests' oracle.
 //!
 //! How this crate computes it (same numbers, less work; see
-//! `Kalman::predict_update`): `S = L D L^T` (no square roots) and
-//! `S^-1 = L^-T D^-1 L^-1`. The gain is never formed: `K_y = I - R S^-1`
-//! and `K_p = M^T` with `M = S^-1 P_yp`. So `y = z - R S^-1 nu`,
-//! `p += M^T nu` (`nu = z - y` the innovation) and `P_yy = R - R S^-1 R`.
-//! `P_yp` and `P_pp` take Joseph's form for those blocks,
-//! `(I - K H) P (I - K H)^T + K R K^T`, which an error in `S^-1` changes
-//! only to second order.
+//! `full::predict_update`): `P' = F P F^T + Q` by blocks (`F`'s `p` rows
+//! are the identity), then, as `R` is diagonal and `H` selects `y`, the
+//! update as [`LATENT_DIM`] scalar updates, one a latent `j` in turn:
+//! `s_j = P_jj + R_j`, `k = P_j / s_j` (`P_j` row `j`), `g += k (z_j - g_j)`,
+//! `P -= k P_j^T`, on `P`'s upper triangle. No matrix is inverted (each
+//! `s_j` is at least `R_j`), and the normalised innovation squared
+//! `nu^T S^-1 nu` is the sum of `(z_j - g_j)^2 / s_j`: the innovations
+//! taken in turn are `nu` whitened by `S`'s triangular factor.
 //!
 //! # Three ways to the same numbers
 //! The covariance recursion (`P`, `S`, `K`) does not depend on the
@@ -44,7 +45,7 @@
 //!    filter over `p` with the sensitivity `V` of `y` to `p` (see
 //!    `Kalman::two_stage_update`), about 1,750 multiply-adds;
 //! 3. [`Estimator::without_schedule`](crate::Estimator::without_schedule) runs the recursion above at every
-//!    update, about 15,300 multiply-adds: the reference path, and the one
+//!    update, about 10,700 multiply-adds: the reference path, and the one
 //!    for a blob without a schedule.
 //!
 //! The exporter checks in f64 that the two-stage form reproduces the full
