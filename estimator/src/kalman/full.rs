@@ -2,9 +2,7 @@
 //! blob without a schedule.
 
 use super::Kalman;
-use super::kernels::{
-    Cov, LatentSquare, all_finite, combo, mirror_upper, tail, upper_rows,
-};
+use super::kernels::{Cov, LatentSquare, all_finite, combo, mirror_upper, tail, upper_rows};
 use crate::blob::{Family, FilterSpec};
 use crate::model::{KoopmanColumns, Model};
 use crate::{AUG_DIM, Aug, Error, LATENT_DIM, Latent, PARAM_DIM};
@@ -301,9 +299,10 @@ fn full_row(p: &Cov, j: usize) -> [f32; AUG_DIM] {
 /// row `i` from its diagonal on, each row's length fixed at compile time;
 /// the `P_pp` block's share added to `dpp` (`[00, 01, 11]`) instead.
 #[inline(always)]
+#[rustfmt::skip]
 fn rank_one_upper(p: &mut Cov, v: &[f32; AUG_DIM], inv: f32, dpp: &mut [f32; 3]) {
     const _: () = assert!(AUG_DIM == 18);
-    let [r0, r1, r2, r3, r4, r5, r6, r7, r8, r9, r10, r11, r12, r13, r14, r15, r16, r17] = p;
+    let [r0, r1, r2, r3, r4, r5, r6, r7, r8, r9, r10, r11, r12, r13, r14, r15, _, _] = p;
     let [v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12, v13, v14, v15, v16, v17] = *v;
     row_tail::<18>(r0, v, v0 * inv);
     row_tail::<17>(r1, v, v1 * inv);
@@ -326,7 +325,6 @@ fn rank_one_upper(p: &mut Cov, v: &[f32; AUG_DIM], inv: f32, dpp: &mut [f32; 3])
     *d00 += k16 * v16;
     *d01 += k16 * v17;
     *d11 += k17 * v17;
-    let _ = (r16, r17);
 }
 
 /// `row -= k v` on the last `W` entries.
