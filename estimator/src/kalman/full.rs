@@ -206,15 +206,15 @@ fn predict_update_with(
         .ok_or(Error::BlobShapeMismatch)?;
     latent_rows_of_fp(ct, p, n);
     let pyy = upper_of_nct(n, ct);
-    for (i, (row, pyy_i)) in out.iter_mut().zip(&pyy).enumerate() {
-        for (d, v) in row.iter_mut().zip(pyy_i).skip(i) {
-            *d = *v;
+    // Whole rows are copied: what lies below the diagonal is not read
+    // until the end mirrors the upper triangle over it.
+    for (row, pyy_i) in out.iter_mut().zip(&pyy) {
+        if let Some(d) = row.first_chunk_mut::<LATENT_DIM>() {
+            *d = *pyy_i;
         }
     }
-    for ((row, prow), i) in out.iter_mut().zip(p).zip(0..).skip(LATENT_DIM) {
-        for (d, v) in row.iter_mut().zip(prow).skip(i) {
-            *d = *v;
-        }
+    for (row, prow) in out.iter_mut().zip(p).skip(LATENT_DIM) {
+        *row = *prow;
     }
     for ((i, row), q) in out.iter_mut().enumerate().zip(&spec.q) {
         if let Some(d) = row.get_mut(i) {
