@@ -106,6 +106,9 @@ mod swing;
 internal! {
     pub mod trust;
 }
+internal! {
+    pub use swing::agm_of_cos_half;
+}
 
 pub use error::Error;
 pub use filter::{CheckReport, Estimator, FilterReport, MAX_ABS_INPUT, Readers, StepOutput};

@@ -13,14 +13,20 @@ pub const MAGIC: [u8; 4] = *b"KKF1";
 /// Format version this build reads and writes.
 ///
 /// Unit: a count (a version number). Set by hand: raised at each change of
-/// the format (12: a bilinear arena ends with its `B(q)`).
-pub const FORMAT_VERSION: u16 = 12;
-/// The oldest format this build reads: 11, which differs from 12 only in
-/// a bilinear arena without `B(q)`, read as `B = 0` (a model of the free
-/// pendulum).
+/// the format (13: the trust section ends with [`TrustSpec::std_swing`]).
+pub const FORMAT_VERSION: u16 = 13;
+/// The oldest format this build reads: 11. Formats 11 and 12 have no
+/// [`TrustSpec::std_swing`] (read as 0); a bilinear arena of format 11 has
+/// no `B(q)` (read as `B = 0`: a model of the free pendulum), one of
+/// format 12 has it, and from 13 on its length says which.
 ///
 /// Unit: a count (a version number). Set by hand with [`FORMAT_VERSION`].
 pub const OLDEST_READ_VERSION: u16 = 11;
+/// The first format whose trust section carries [`TrustSpec::std_swing`].
+///
+/// Unit: a count (a version number). Set by hand: the format that added
+/// it.
+pub const SWING_VERSION: u16 = 13;
 
 /// The fixed-size header, read before anything else.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
@@ -196,6 +202,12 @@ pub struct TrustSpec<'a> {
     /// (0: any source passes;
     /// [`Reason::CoarseSource`](crate::Reason::CoarseSource)).
     pub min_samples_per_period: f32,
+    /// The length's relative standard deviation per `c(a) - 1` of the
+    /// widest swing `a` (`c(a) = 1 / AGM(1, cos(a / 2))`, the period's
+    /// amplitude factor), added to the reported one: the model's own error
+    /// grows with the swing, and held-out rollouts at wide swings set how
+    /// much (format 13; 0 before: none added).
+    pub std_swing: f32,
 }
 
 impl TrustSpec<'_> {
@@ -213,7 +225,9 @@ impl TrustSpec<'_> {
             && self.nis_law.iter().all(|v| v.is_finite())
             && self.max_rate_mismatch >= 0.0
             && self.max_step_nis >= 0.0
-            && self.min_samples_per_period >= 0.0;
+            && self.min_samples_per_period >= 0.0
+            && self.std_swing.is_finite()
+            && self.std_swing >= 0.0;
         let stds = self.std_scale.iter().all(|v| v.is_finite() && *v > 0.0)
             && self.std_floor.iter().all(|v| v.is_finite() && *v >= 0.0);
         if finite && stds {

@@ -211,13 +211,25 @@ impl<'a> Blob<'a> {
     }
 
     internal! {
+        /// Whether a bilinear arena carries `B(q)`: one of format 11 never,
+        /// of 12 always, from 13 on as its length says.
+        pub fn bilinear_driven(&self) -> bool {
+            match self.header.version {
+                v if v < DRIVEN_VERSION => false,
+                DRIVEN_VERSION => true,
+                _ => self.body.weights.len() == self.layout().bilinear_arena_len(true),
+            }
+        }
+    }
+
+    internal! {
         /// A bilinear blob's `B_k` (`B_0`, `B_1`, `B_2`, `B_11` for
         /// `k = 0..4`: `B(q) = B_0 + q_1 B_1 + q_2 B_2 + q_1^2 B_11`, a
         /// column over the latent); empty for a linear blob, one of format
         /// 11 (`B = 0`) or `k` out of range.
         pub fn bilinear_b(&self, k: usize) -> F32s<'a> {
             match self.body.family {
-                Family::Bilinear if k < BILINEAR_BLOCKS && self.header.version >= DRIVEN_VERSION => {
+                Family::Bilinear if k < BILINEAR_BLOCKS && self.bilinear_driven() => {
                     self.body.span(self.layout().bilinear_b_at() + k * LATENT_DIM, LATENT_DIM)
                 }
                 _ => F32s(&[]),

@@ -20,14 +20,14 @@
 //! # Examples
 //!
 //! ```
-//! use estimator::blob::{Aligned, Blob, OLDEST_READ_VERSION};
+//! use estimator::blob::{Aligned, Blob, FORMAT_VERSION};
 //!
 //! static RIG: &Aligned<[u8]> = &Aligned(*include_bytes!("../../../weights/rig.kkf"));
 //!
-//! // Made in format 11 (a bilinear arena without the torque's columns):
-//! // read as it is, a model of the free pendulum.
+//! // The current format; a bilinear arena without the torque's columns
+//! // (its length says so): a model of the free pendulum.
 //! let blob = Blob::from_bytes(&RIG.0)?;
-//! assert_eq!(blob.header.version, OLDEST_READ_VERSION);
+//! assert_eq!(blob.header.version, FORMAT_VERSION);
 //! assert_eq!(blob.body.params[0].name, "length");
 //! assert_eq!(blob.body.dt, 0.04);
 //! # Ok::<(), estimator::Error>(())
@@ -36,6 +36,7 @@
 mod envelope;
 mod format;
 mod layout;
+mod older;
 mod reading;
 
 use serde::{Deserialize, Serialize};
@@ -43,7 +44,7 @@ use serde::{Deserialize, Serialize};
 pub use envelope::Envelope;
 pub use format::{
     Activation, Body, F32s, FORMAT_VERSION, Family, FilterSpec, Header, MAGIC, OLDEST_READ_VERSION,
-    TrustSpec,
+    SWING_VERSION, TrustSpec,
 };
 internal! {
     pub use layout::{
@@ -99,12 +100,26 @@ impl<'a> Blob<'a> {
             return Err(Error::BlobBadVersion);
         }
         header.check_dims()?;
-        let (blob, rest) = postcard::take_from_bytes_crc32::<Blob<'a>>(bytes, CRC.digest())
-            .map_err(|e| match e {
-                postcard::Error::DeserializeBadCrc => Error::BlobBadCrc,
-                postcard::Error::DeserializeUnexpectedEnd => Error::BlobTruncated,
-                _ => Error::BlobMalformed,
-            })?;
+        let read_error = |e| match e {
+            postcard::Error::DeserializeBadCrc => Error::BlobBadCrc,
+            postcard::Error::DeserializeUnexpectedEnd => Error::BlobTruncated,
+            _ => Error::BlobMalformed,
+        };
+        let (blob, rest) = if header.version < SWING_VERSION {
+            let (old, rest) =
+                postcard::take_from_bytes_crc32::<older::BlobV12<'a>>(bytes, CRC.digest())
+                    .map_err(read_error)?;
+            let header = old.header;
+            (
+                Blob {
+                    header,
+                    body: old.body(),
+                },
+                rest,
+            )
+        } else {
+            postcard::take_from_bytes_crc32::<Blob<'a>>(bytes, CRC.digest()).map_err(read_error)?
+        };
         if !rest.is_empty() {
             return Err(Error::BlobTrailingBytes);
         }
@@ -122,6 +137,9 @@ impl<'a> Blob<'a> {
     pub fn to_slice<'b>(&self, buf: &'b mut [u8]) -> Result<&'b mut [u8], Error> {
         const ZEROS: [u8; 3] = [0; 3];
         let mut blob = *self;
+        // Written in the current layout, whatever format it was read from
+        // (a bilinear arena's length says whether it carries `B(q)`).
+        blob.header.version = FORMAT_VERSION;
         blob.body.pad = &[];
         let n = postcard::to_slice_crc32(&blob, buf, CRC.digest())
             .map_err(|_| Error::InputBadLength)?
@@ -163,9 +181,9 @@ impl<'a> Blob<'a> {
         let len = match b.family {
             Family::Linear => self.layout().arena_len(b.filter.schedule_steps),
             // The extended filter's gains depend on the state: no schedule.
-            Family::Bilinear if b.filter.schedule_steps == 0 => self
-                .layout()
-                .bilinear_arena_len(self.header.version >= DRIVEN_VERSION),
+            Family::Bilinear if b.filter.schedule_steps == 0 => {
+                self.layout().bilinear_arena_len(self.bilinear_driven())
+            }
             Family::Bilinear => return Err(Error::BlobShapeMismatch),
         };
         b.weights.check(len)?;

@@ -9,9 +9,15 @@
 //! readers read the same angles and so are not joined with each other,
 //! and a coarse source's frames, which the filter takes several times
 //! each once interpolated, count once in the reported deviation.
+//!
+//! The model's length carries, beside the filter's deviation scaled by
+//! the blob's calibration, two terms of its own error: a coarse source's
+//! interpolation ([`COARSE_SHARE`]) and the swing's width (the blob's
+//! `TrustSpec::std_swing`, set by `koopman calibrate` on held-out rollouts).
 
 use super::Estimator;
 use crate::blob::ParamSpec;
+use crate::swing::agm_of_cos_half;
 use crate::trust;
 use crate::PARAM_DIM;
 
@@ -255,8 +261,17 @@ impl Estimator<'_> {
         } else {
             0.0
         };
-        let std = if coarse.is_finite() {
-            libm::sqrtf(std * std + coarse * coarse)
+        // The model's own error grows with the swing, by the blob's
+        // calibration (`TrustSpec::std_swing`, per `c(a) - 1`).
+        let per_swing = self.model.blob().body.trust.std_swing;
+        let wide = match self.swing.widest() {
+            Some(a) if spec.scales_with_g && per_swing > 0.0 => {
+                per_swing * (1.0 / agm_of_cos_half(a) - 1.0) * libm::fabsf(value)
+            }
+            _ => 0.0,
+        };
+        let std = if (coarse + wide).is_finite() {
+            libm::sqrtf(std * std + coarse * coarse + wide * wide)
         } else {
             std
         };

@@ -2,7 +2,7 @@
 //! `phi^-1`, the augmented Koopman matrix `F`, and open-loop simulation.
 
 use crate::blob::{
-    BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, DRIVEN_VERSION, Family, Layout, Net,
+    BILINEAR_BLOCK_LEN, BILINEAR_BLOCKS, Blob, Family, Layout, Net,
     SCHEDULE_STEP_LEN,
 };
 use crate::{
@@ -194,7 +194,7 @@ impl<'a> Model<'a> {
         let column = |at: usize| rows::<1, LATENT_DIM>(arena, at).map(|[r]| r);
         let drive = match blob.body.family {
             Family::Linear => Some(Drive::Linear(column(layout.b_at())?)),
-            Family::Bilinear if blob.header.version >= DRIVEN_VERSION => {
+            Family::Bilinear if blob.bilinear_driven() => {
                 let at = |k: usize| column(layout.bilinear_b_at() + k * LATENT_DIM);
                 Some(Drive::Bilinear([at(0)?, at(1)?, at(2)?, at(3)?]))
             }

@@ -40,13 +40,15 @@ pub(crate) use window::SwingWindow;
 /// the first half swings read it.
 pub(crate) const MIN_AMPLITUDE: f32 = 0.03;
 
-/// `AGM(1, cos(a / 2))`: a pendulum's small-swing half period over its
-/// half period at amplitude `a` (four steps: converged to f32 for any
-/// amplitude below 2.5 rad).
-pub(crate) fn agm_of_cos_half(a: f32) -> f32 {
-    let (mut x, mut y) = (1.0f32, libm::cosf(0.5 * a));
-    for _ in 0..4 {
-        (x, y) = (0.5 * (x + y), libm::sqrtf(x * y));
+internal! {
+    /// `AGM(1, cos(a / 2))`: a pendulum's small-swing half period over its
+    /// half period at amplitude `a` (four steps: converged to f32 for any
+    /// amplitude below 2.5 rad).
+    pub fn agm_of_cos_half(a: f32) -> f32 {
+        let (mut x, mut y) = (1.0f32, libm::cosf(0.5 * a));
+        for _ in 0..4 {
+            (x, y) = (0.5 * (x + y), libm::sqrtf(x * y));
+        }
+        0.5 * (x + y)
     }
-    0.5 * (x + y)
 }

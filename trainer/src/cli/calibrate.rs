@@ -35,7 +35,7 @@ pub fn run(a: Args) -> Result<()> {
     let current = current_format(&bytes, &a.blob)?;
     if let Some(version) = current.upgraded_from {
         eprintln!(
-            "{}: format {version}, upgraded to {FORMAT_VERSION} (a bilinear blob to 11: no torque columns, B = 0; model, filter and schedule unchanged; before format 8, a rod's)",
+            "{}: format {version}, upgraded to {FORMAT_VERSION} (a bilinear blob without torque columns keeps none: B = 0; no swing term until calibrated; model, filter and schedule unchanged; before format 8, a rod's)",
             a.blob.display()
         );
     }
@@ -52,7 +52,7 @@ pub fn run(a: Args) -> Result<()> {
     let out = a.out.unwrap_or(a.blob.clone());
     trainer::export::write_calibrated(&a.blob, &out, &out_bytes, &report, &[])?;
     super::say(&format!(
-        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e}, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1, a measurement refused above {:.1} times the mean innovation, a source flagged below {:.1} samples a period",
+        "wrote {} ({} bytes): envelope allows {} of {} measurements off, range [{:.3}, {:.3}], std x{:.2} + {:.3e} + {:.3} (c(a) - 1) of the length, swing at least {:.3} rad, unevenness at most {:.3}, mean innovation x L^{:.3} / s^{:.3} at most {:.4e}, rate ratio within {:.3} of 1, a measurement refused above {:.1} times the mean innovation, a source flagged below {:.1} samples a period",
         out.display(),
         out_bytes.len(),
         report.envelope_max_off,
@@ -61,6 +61,7 @@ pub fn run(a: Args) -> Result<()> {
         report.range[1],
         report.std_scale,
         report.std_floor,
+        report.std_swing,
         report.min_swing,
         report.max_unevenness,
         report.nis_law[0],

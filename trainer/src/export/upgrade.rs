@@ -11,7 +11,7 @@ use std::path::Path;
 use anyhow::Result;
 use estimator::blob::{
     Activation, Blob, Body, CRC, Envelope, F32s, FORMAT_VERSION, Family, FilterSpec, Header,
-    OLDEST_READ_VERSION, ParamSpec, TrustSpec,
+    ParamSpec, TrustSpec,
 };
 use estimator::{PARAM_DIM, Rig, STATE_DIM};
 use serde::Deserialize;
@@ -228,23 +228,28 @@ pub fn current_format(bytes: &[u8], path: &Path) -> Result<Current> {
         Some(8) => read::<BodyV8<TrustSpecV8>>(bytes, path, 8)?.current(TrustSpecV8::current),
         Some(9) => read::<BodyV8<TrustSpecV9>>(bytes, path, 9)?.current(TrustSpecV9::current),
         Some(10) => read::<BodyV8<TrustSpecV10>>(bytes, path, 10)?.current(TrustSpecV10::current),
-        // Current, or broken in a way the reader names.
+        // Read by the estimator (11 and 12 without the swing's term, which
+        // reads as 0; written again in the current layout), or broken in a
+        // way the reader names.
         _ => {
-            Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            let blob =
+                Blob::from_bytes(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            let old = version.filter(|v| *v < FORMAT_VERSION);
             return Ok(Current {
-                bytes: bytes.to_vec(),
-                upgraded_from: None,
+                bytes: if old.is_some() {
+                    blob_bytes(&blob)?
+                } else {
+                    bytes.to_vec()
+                },
+                upgraded_from: old,
             });
         }
     };
-    // The old header's widths (a narrow blob stays narrow), this format;
-    // a bilinear arena, which has no torque columns, format 11 (B = 0).
-    let version_now = match body.family {
-        Family::Bilinear => OLDEST_READ_VERSION,
-        Family::Linear => FORMAT_VERSION,
-    };
+    // The old header's widths (a narrow blob stays narrow), this format (a
+    // bilinear arena without torque columns keeps none: its length says
+    // so, B = 0).
     let header = Header {
-        version: version_now,
+        version: FORMAT_VERSION,
         ..header.unwrap_or(Header::CURRENT)
     };
     Ok(Current {

@@ -243,6 +243,10 @@ pub struct Calibration {
     pub effect_std: [f32; 2],
     /// The smallest swing that passes, rad (0: all pass).
     pub min_swing: f32,
+    /// The length's relative standard deviation per `c(a) - 1` of the
+    /// widest swing (`TrustSpec::std_swing`; 0: none added).
+    #[serde(default)]
+    pub std_swing: f32,
     /// The calibration set's quantile at `1 - unevenness_alpha` of the
     /// largest unevenness each rollout leaves (where measured).
     pub unevenness_quantile: f32,
@@ -350,6 +354,7 @@ impl Calibration {
             std_floor: trust.std_floor[0],
             effect_std: [trust.std_scale[1], trust.std_floor[1]],
             min_swing: trust.min_swing,
+            std_swing: trust.std_swing,
             unevenness_quantile: t.unevenness_quantile,
             max_unevenness: trust.max_unevenness,
             max_nis: trust.max_nis,
@@ -471,6 +476,7 @@ pub const OPEN: TrustSpec<'static> = TrustSpec {
     max_rate_mismatch: f32::MAX,
     max_step_nis: 0.0,
     min_samples_per_period: 0.0,
+    std_swing: 0.0,
 };
 
 /// Serialises a blob with its CRC.

@@ -90,6 +90,12 @@ pub(super) fn thresholds<'m>(
         conformal(&mut r.off, 1.0 - cfg.envelope_alpha).min(f64::from(u16::MAX)) as u16;
     let [lo, hi] = range(&mut r.qs, cfg, spec, setup.lengths())?;
     let (std_floor, std_scale) = std_cover(&mut r.err_long, &r.err_window, cfg.coverage);
+    let std_swing = swing_cover(
+        &r.err_window,
+        &r.swing_window,
+        (std_floor, std_scale),
+        cfg.coverage,
+    );
     // The effect's, where measured (else as the filter says).
     let (effect_floor, effect_scale) = if r.effect_long.is_empty() {
         (0.0, 1.0)
@@ -115,6 +121,7 @@ pub(super) fn thresholds<'m>(
             max_rate_mismatch: rate_quantile.max(cfg.rate_floor as f32),
             max_step_nis: step_nis_quantile * cfg.step_nis_margin as f32,
             min_samples_per_period: fewest as f32,
+            std_swing: std_swing as f32,
         },
         unevenness_quantile,
         rate_quantile,
@@ -152,6 +159,10 @@ struct Readings {
     err_long: Vec<f64>,
     /// The coordinate's error after the window, and the filter's std there.
     err_window: Vec<(f64, f64)>,
+    /// After the window: the widest swing (rad), and the coordinate's
+    /// standard deviation per unit of the length's relative one
+    /// (`L / |dL/dq|`) there, beside `err_window`.
+    swing_window: Vec<(f64, f64)>,
     /// The effect's, as the coordinate's, where the blob declares one and
     /// the rollout was drawn with its coefficient.
     effect_long: Vec<f64>,
@@ -205,6 +216,11 @@ impl Readings {
             r.err_window.push((
                 f64::from((a.filter.coordinate[0] - truth).abs()),
                 f64::from(a.filter.coordinate_std[0]),
+            ));
+            let q = a.filter.coordinate[0];
+            r.swing_window.push((
+                f64::from(a.checks.swing),
+                f64::from(spec.read(q).abs()) / f64::from(spec.slope(q).abs()),
             ));
             progress.tick();
         }
@@ -345,6 +361,51 @@ fn std_cover(long: &mut [f64], window: &[(f64, f64)], coverage: f64) -> (f64, f6
         .map(|(e, s)| ((e * e / 4.0 - floor * floor).max(0.0)).sqrt() / s.max(f64::MIN_POSITIVE))
         .collect();
     (floor, conformal(&mut scales, coverage).max(1.0))
+}
+
+/// The length's relative standard deviation per `c(a) - 1` of the widest
+/// swing ([`TrustSpec::std_swing`]): after the window, in each of the upper
+/// two thirds of the calibration set by swing, `2 sqrt((a s)^2 + b^2 +
+/// (k (c - 1) u)^2)` covers `coverage` of the errors (`u` the coordinate's
+/// deviation per unit of the length's relative one); the larger `k` of the
+/// two. 0 where the scale and floor cover them already. The lowest third
+/// is left out: there `c - 1` is near 0 and any miss would ask for a
+/// large `k` that the wide swings do not need.
+fn swing_cover(
+    window: &[(f64, f64)],
+    swing: &[(f64, f64)],
+    (floor, scale): (f64, f64),
+    coverage: f64,
+) -> f64 {
+    let mut rows: Vec<(f64, f64)> = window
+        .iter()
+        .zip(swing)
+        .filter(|(_, (a, u))| a.is_finite() && *a > 0.0 && u.is_finite())
+        .map(|((e, s), (a, u))| {
+            let covered = (scale * s).powi(2) + floor * floor;
+            let c = 1.0 / f64::from(estimator::agm_of_cos_half(*a as f32)) - 1.0;
+            let need = (e * e / 4.0 - covered).max(0.0).sqrt();
+            let per = if need == 0.0 {
+                0.0
+            } else {
+                need / (c * u).max(f64::MIN_POSITIVE)
+            };
+            (*a, per)
+        })
+        .collect();
+    rows.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let third = rows.len() / 3;
+    [&rows[third..2 * third], &rows[2 * third..]]
+        .iter()
+        .map(|band| {
+            let mut per: Vec<f64> = band.iter().map(|(_, k)| *k).collect();
+            if per.is_empty() {
+                0.0
+            } else {
+                conformal(&mut per, coverage)
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The consistency statistic's law `[a, b]` ([`TrustSpec::nis_law`]):
