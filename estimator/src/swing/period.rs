@@ -28,7 +28,8 @@
 //! them is timed by its first middle and its last: `k`'s variance is one
 //! period's (the spread of two half swings' `r = d / c` together, `2 c`
 //! times) times the number of runs, over `(sum d)^2`, with a relative
-//! floor [`STD_FLOOR`]. A period whose `r` strays more than [`GATE`] from
+//! floor [`STD_FLOOR`] and two terms of the amplitude correction's own
+//! error ([`AMPLITUDE_SHARE`], [`LEAN_SHARE`]). A period whose `r` strays more than [`GATE`] from
 //! `k` (a missed or spurious crossing, a tracker's glitch) is left out
 //! and ends the run, as does a step without a measurement.
 
@@ -96,6 +97,23 @@ pub(crate) const STD_FLOOR: f32 = 5e-4;
 /// length moves by 0.06% rather than 0.14% (sweep:
 /// docs/tuning.md#swingperiodamplitude_share).
 pub(crate) const AMPLITUDE_SHARE: f32 = 0.01;
+/// `k`'s relative standard deviation per `(c - 1) |m| / a`, the mean
+/// amplitude correction times the mean lean of the half swings read (`m`
+/// their turning points' middle, `a` their amplitude): the correction is
+/// the free pendulum's, and a swing that friction slows within each half
+/// swing (whose middle then leans by half the amplitude it loses) departs
+/// from it the more, the wider it swings. Such periods read the length
+/// 0.3 to 1.2% long at 1 to 1.4 rad under Coulomb friction or a drag,
+/// while their spread stays small. A swing that keeps its amplitude (the
+/// protocol's rollouts) adds nothing.
+///
+/// Unit: a share (of `(c - 1) |m| / a`, dimensionless). Compared with
+/// none, 0.5, 1 and 2 on lab-check seeds 12 to 18 and, with `--recordings
+/// 200 --offsets -0.1,0.1 --rates 5,240 --mixed`, 12, 14 and 15 (tuning):
+/// the smallest whose 2-std band covers every swing released at 1 rad or
+/// more at the end and at least 95% after 64 measurements, one of the
+/// right fewer trusted (sweep: docs/tuning.md#swingperiodlean_share).
+pub(crate) const LEAN_SHARE: f32 = 1.0;
 
 /// The crossings so far and the period they give. Times are in steps
 /// from the step the last turning point was found at (exact in `f32`
@@ -140,6 +158,8 @@ pub(crate) struct Period {
     m2: f32,
     /// The least and the largest `c` read.
     c_range: [f32; 2],
+    /// The sum of `|m| / a` over the half swings that closed a period.
+    lean_sum: f32,
     /// Periods left out in a row.
     strays: u8,
     /// `w0^2` and its relative standard deviation, after the last period.
@@ -170,6 +190,7 @@ impl Default for Period {
             mean: 0.0,
             m2: 0.0,
             c_range: [f32::INFINITY, f32::NEG_INFINITY],
+            lean_sum: 0.0,
             strays: 0,
             read: None,
         }
@@ -251,6 +272,7 @@ impl Period {
         // of it on average (`pi dt / T = dt w / 2`).
         let phase = 0.5 * source_dt / dt * w;
         let a = a / (1.0 - phase * phase / 6.0).max(0.5);
+        let lean_share = libm::fabsf(m) / a;
         // The lean, smoothed over the half swings in this direction: its
         // causes change slowly, and a turning point's noise is each one's.
         let m = match self.lean.get_mut(usize::from(up > 0.0)) {
@@ -263,7 +285,7 @@ impl Period {
         };
         let middle = crossing - since + up * libm::asinf((m / a).clamp(-1.0, 1.0)) / w;
         if !before.is_nan() {
-            self.half_swing(a, (middle - before) * dt);
+            self.half_swing(a, (middle - before) * dt, lean_share);
         }
         self.middle = middle;
     }
@@ -295,7 +317,7 @@ impl Period {
 
     /// A half swing of amplitude `a` lasting `d` seconds: with the one
     /// before it in the run, a period.
-    fn half_swing(&mut self, a: f32, d: f32) {
+    fn half_swing(&mut self, a: f32, d: f32, lean_share: f32) {
         let c = 1.0 / agm_of_cos_half(a);
         let Some((d0, c0)) = self.linked.filter(|_| d > 0.0) else {
             self.end_run();
@@ -327,6 +349,7 @@ impl Period {
         self.n = self.n.saturating_add(1);
         self.sum_d += d;
         self.sum_c += c;
+        self.lean_sum += lean_share;
         let [lo, hi] = &mut self.c_range;
         (*lo, *hi) = (lo.min(c), hi.max(c));
         let delta = r - self.mean;
@@ -357,7 +380,9 @@ impl Period {
         let rel = STD_SCALE * few * run_std / self.sum_d;
         let [lo, hi] = self.c_range;
         let amplitude = AMPLITUDE_SHARE * (hi - lo).max(0.0);
-        let rel = libm::sqrtf(rel * rel + amplitude * amplitude + STD_FLOOR * STD_FLOOR);
+        let wide = LEAN_SHARE * (self.sum_c / n - 1.0) * (self.lean_sum / n);
+        let rel =
+            libm::sqrtf(rel * rel + amplitude * amplitude + STD_FLOOR * STD_FLOOR + wide * wide);
         let w = core::f32::consts::PI * self.sum_c / self.sum_d;
         // w0^2 = pi^2 / k^2: twice k's relative deviation.
         Some((w * w, 2.0 * rel))
