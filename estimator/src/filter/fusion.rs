@@ -216,11 +216,15 @@ impl Estimator<'_> {
 
     /// `w0^2` and its relative standard deviation from the first swings:
     /// their half swings timed ([`super::early`]) and their equation
-    /// fitted ([`super::fit`]), joined by inverse variance where they
-    /// agree, else the sharper.
+    /// fitted ([`super::fit`]), the sharper of the two; a driven swing's
+    /// half swings are the drive's, and the fit alone reads it.
     fn first_swings(&self) -> Option<(f32, f32)> {
         let dt = self.model.blob().body.dt;
-        match (self.early.reading(), self.fit.reading(dt, self.source_dt)) {
+        let fit = self.fit.reading(dt, self.source_dt);
+        if self.driven {
+            return fit;
+        }
+        match (self.early.reading(), fit) {
             (Some((w_e, r_e)), Some((w_f, r_f))) => {
                 if r_f < r_e { Some((w_f, r_f)) } else { Some((w_e, r_e)) }
             }

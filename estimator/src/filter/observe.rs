@@ -96,7 +96,7 @@ impl Estimator<'_> {
             self.centre.gap();
             self.period.gap();
             self.early.gap();
-            self.fit.hold(dt);
+            self.fit.hold(dt, self.kalman.u);
         } else {
             let was = self.centre.subtracting();
             let [x, _] = centred;
@@ -105,7 +105,7 @@ impl Estimator<'_> {
             }
             self.period.push(x);
             self.early.push(theta);
-            self.fit.push(theta, dt);
+            self.fit.push(theta, dt, self.kalman.u);
             if let Some(half) = self.centre.push(theta, rate) {
                 self.decay.turn(half);
                 self.growth.turn(half);

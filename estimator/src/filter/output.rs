@@ -207,7 +207,10 @@ impl Estimator<'_> {
             // 100).
             let suspect = self.kalman.t < 2 * crate::WINDOW as u32
                 && (!consistent || unevenness.is_some_and(|u| u > calib.max_unevenness));
-            timed = self.join_early(&mut params, &mut param_std, in_range, suspect);
+            // A driven swing: the model's deviation was calibrated on free
+            // ones, and the fit, which follows the drive, reads alone.
+            let calibrated = in_range && !self.driven;
+            timed = self.join_early(&mut params, &mut param_std, calibrated, suspect);
         }
         let mut checks = Checks {
             corrections: self.spread.n,
