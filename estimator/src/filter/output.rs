@@ -198,7 +198,9 @@ impl Estimator<'_> {
         let (mut params, mut param_std, period, agreement) =
             self.with_period(&read, in_range, w0_squared);
         let mut timed = false;
-        if held.is_none() && (w0_squared.is_none() || self.kalman.t < fit::FIT_STEPS) {
+        // A driven run's length is the fit's all along (`swing::fit`).
+        let early = w0_squared.is_none() || self.kalman.t < fit::FIT_STEPS || self.driven;
+        if held.is_none() && early {
             // In the first two windows, a model whose measurements it
             // cannot explain, or whose swing is uneven (an offset not yet
             // subtracted), is not believed over the half swings (later, a

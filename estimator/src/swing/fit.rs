@@ -37,8 +37,14 @@
 //! the top, and its period is the drive's as much as the rig's. The fit
 //! follows it at any angle (sine and cosine by quadrant) and reads from
 //! [`MIN_PERIODS_DRIVEN`] on. A free swing past [`MAX_ANGLE`] is read by
-//! the model and the period, as before: the fit gives no reading for it
-//! unless a torque comes.
+//! the model and the period, as before: the fit stops there, and a torque
+//! that comes later starts it again.
+//!
+//! A driven fit does not stop when the period reads: it runs in segments of
+//! [`FIT_STEPS`] (the double integrals' terms grow with the time fitted),
+//! and the segments' readings, each from its own measurements, join by
+//! inverse variance (no deviation below the floor, which is the fit's
+//! error, not its noise).
 
 /// Steps the fit runs at least (two windows), and on until the period
 /// reads.
@@ -101,9 +107,9 @@ const REL_FLOOR_DRIVEN: f32 = 0.015;
 /// 7.9), where the trapezoids' factor `x / tan x` is 0.95; not swept.
 const MAX_STEP_PHASE: f32 = 0.4;
 /// The widest free angle fitted, rad: real rigs swing to 1.5 rad about an
-/// offset of a few hundredths. Beyond it a free fit gives no reading (a
-/// wider release is read by the model and the period, as the protocol's
-/// blob was calibrated); a driven one reads on (module docs).
+/// offset of a few hundredths. Beyond it a free fit stops (a wider
+/// release is read by the model and the period, as the protocol's blob
+/// was calibrated); a driven one reads on (module docs).
 ///
 /// Unit: rad. Set by hand above real rigs' widest swing (1.5 rad); the sine
 /// and cosine series is tested up to it; not swept.
@@ -135,10 +141,11 @@ pub(crate) struct Fit {
     tq: f32,
     /// A torque was declared (not zero) since the fit began.
     driven: bool,
-    /// An angle past [`MAX_ANGLE`] was fitted.
-    wide: bool,
     /// The period gives its own reading.
     done: bool,
+    /// A driven fit's closed segments joined: `w0^2` and its relative
+    /// standard deviation (floor included).
+    past: Option<(f32, f32)>,
 }
 
 impl Default for Fit {
@@ -159,8 +166,8 @@ impl Default for Fit {
             tq1: 0.0,
             tq: 0.0,
             driven: false,
-            wide: false,
             done: false,
+            past: None,
         }
     }
 }
@@ -171,16 +178,46 @@ impl Fit {
     #[inline(always)]
     pub(crate) fn push(&mut self, theta: f32, dt: f32, u: f32) {
         if self.done {
-            return;
+            if u == 0.0 {
+                return;
+            }
+            // A drive after the fit stopped: it starts again, driven.
+            *self = Fit {
+                driven: true,
+                ..Fit::default()
+            };
+        }
+        if self.driven && u32::from(self.rows) >= FIT_STEPS {
+            self.close_segment(dt);
         }
         self.push_row(theta, dt, u);
+    }
+
+    /// A driven segment's reading joined with those before it, and the
+    /// fit started afresh (still driven) from the next measurement.
+    #[cold]
+    #[inline(never)]
+    fn close_segment(&mut self, dt: f32) {
+        let past = match (self.segment(dt, 0.0), self.past) {
+            (Some(now), Some(before)) => Some(joined(now, before)),
+            (now, before) => now.or(before),
+        };
+        *self = Fit {
+            driven: true,
+            past,
+            ..Fit::default()
+        };
     }
 
     /// The integrals to `theta`, and its row rotated in.
     #[cold]
     #[inline(never)]
     fn push_row(&mut self, theta: f32, dt: f32, u: f32) {
-        self.wide |= libm::fabsf(theta) > MAX_ANGLE;
+        if libm::fabsf(theta) > MAX_ANGLE && !self.driven && u == 0.0 {
+            // Free and too wide: the fit stops (a torque starts it again).
+            self.done = true;
+            return;
+        }
         let (sn, cs) = sin_cos_any(theta);
         self.integrate(theta, sn, cs, dt, u);
         let row = [1.0, self.t, self.tq, -self.s, self.c, -self.i];
@@ -201,13 +238,17 @@ impl Fit {
     /// A step without a measurement: the fit starts again.
     pub(crate) fn gap(&mut self) {
         if !self.done {
-            *self = Fit::default();
+            *self = Fit {
+                past: self.past,
+                ..Fit::default()
+            };
         }
     }
 
-    /// The period gives its own reading from now on.
+    /// The period gives its own reading from now on; a driven fit reads
+    /// on (the period under a drive is the drive's as much as the rig's).
     pub(crate) fn finish(&mut self) {
-        self.done = true;
+        self.done = !self.driven;
     }
 
     /// The integrals to the angle `theta` (its sine and cosine), `dt` on,
@@ -278,7 +319,25 @@ impl Fit {
     /// between a source's frames `source_dt` apart where that is more than
     /// the step `dt`.
     pub(crate) fn reading(&self, dt: f32, source_dt: f32) -> Option<(f32, f32)> {
-        if self.done || self.rows < MIN_ROWS || (self.wide && !self.driven) {
+        let Some(before) = self.past else {
+            return self.segment(dt, source_dt);
+        };
+        let scale = if source_dt > dt {
+            libm::sqrtf(source_dt / dt)
+        } else {
+            1.0
+        };
+        let before = (before.0, before.1 * scale);
+        Some(match self.segment(dt, source_dt) {
+            Some(now) => joined(now, before),
+            None => before,
+        })
+    }
+
+    /// [`Fit::reading`] of the measurements since the fit (or its
+    /// segment) began.
+    fn segment(&self, dt: f32, source_dt: f32) -> Option<(f32, f32)> {
+        if self.done || self.rows < MIN_ROWS {
             return None;
         }
         let (fitted, rel) = self.solved()?;
@@ -352,6 +411,19 @@ impl Fit {
         };
         Some((w2, libm::sqrtf(rel2 + floor * floor)))
     }
+}
+
+/// Two readings of `w0^2` with their relative standard deviations joined
+/// by inverse variance; the deviation no smaller than the driven floor
+/// (the fit's error repeats from segment to segment).
+fn joined((w_a, r_a): (f32, f32), (w_b, r_b): (f32, f32)) -> (f32, f32) {
+    let (v_a, v_b) = ((r_a * w_a) * (r_a * w_a), (r_b * w_b) * (r_b * w_b));
+    if v_a + v_b <= 0.0 || (v_a + v_b).is_nan() {
+        return (w_a, r_a);
+    }
+    let w = (w_a * v_b + w_b * v_a) / (v_a + v_b);
+    let rel = libm::sqrtf(v_a * v_b / (v_a + v_b)) / w;
+    (w, rel.max(REL_FLOOR_DRIVEN))
 }
 
 /// `sin x` and `cos x` at any angle: [`sin_cos`] within [`MAX_ANGLE`],
