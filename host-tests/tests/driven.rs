@@ -8,8 +8,14 @@
 //! and a swing-up controller's torques, 10 each (90).
 
 use estimator::{Estimator, Model, Reason, StepOutput, Trust};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use trainer_core::data::import::{self, ImportOptions};
+use trainer_core::data::lab::{Artefacts, Case, LAB_G, LabSpec, Stamps};
 use trainer_core::data::{Physics, driven_test_set, states_f32};
 use trainer_core::physics::drive::DriveKind;
+use trainer_core::physics::{Effect, EffectKind, Rig};
+use trainer_core::track::track_each;
 
 /// The blobs and the relative accuracy each is held to.
 const BLOBS: [(&str, f64); 3] = [
@@ -147,4 +153,80 @@ fn a_long_driven_recording_stays_read_by_the_fit() {
             }
         }
     }
+}
+
+/// Lab-like driven strings through the rig blob, the drive declared: 24
+/// strings of 0.2 to 1.4 m released at 0.1 to 1 rad, filmed at 12 to 100
+/// Hz with tracking noise, an offset within 0.05 rad, viscous, drag or
+/// Coulomb friction at the lab's sizes in turn, and a sine drive at 0.5
+/// to 1.8 times the swing's frequency, 20 s, imported at the blob's 0.04
+/// s; the declared torque is the drive's value at each step's middle
+/// (its gain is the fit's unknown, so any unit will do). Drawn from seed
+/// 12 of this test's own.
+#[test]
+fn a_driven_lab_string_reads_within_five_percent() {
+    let bytes = host_tests::rig_blob();
+    let m = Model::from_bytes(&bytes).unwrap();
+    let dt = f64::from(m.blob().body.dt);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let (mut errors, mut covered) = (Vec::new(), 0);
+    for k in 0..24 {
+        let length = rng.random_range(0.2..1.4);
+        let rate = [12.0, 30.0, 60.0, 100.0][k % 4];
+        let w = (LAB_G / length).sqrt();
+        let ratio = rng.random_range(0.5..1.8);
+        let amp = rng.random_range(0.5..3.0);
+        let kind = [EffectKind::Viscous, EffectKind::Drag, EffectKind::Coulomb][k % 3];
+        let coefficient = match kind {
+            EffectKind::Coulomb => rng.random_range(0.02..0.2),
+            _ => rng.random_range(0.01..0.1),
+        };
+        let spec = LabSpec {
+            case: Case::Forcing,
+            length,
+            rig: Rig::Simple,
+            theta0: rng.random_range(0.1..1.0),
+            duration: 20.0,
+            rate,
+            stamps: Stamps::Even,
+            noise: rng.random_range(0.002..0.01),
+            quantum: 0.1f64.to_radians(),
+            effects: vec![Effect::new(kind, coefficient)],
+            offset: rng.random_range(-0.05..0.05),
+            forcing: Some((amp, ratio * w)),
+            artefacts: Artefacts::NONE,
+        };
+        let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(k as u64));
+        let opts = ImportOptions {
+            dt,
+            ..ImportOptions::default()
+        };
+        let mut r = import::to_rollout(&rec, 0, &opts).unwrap();
+        let t0 = r.t[0];
+        r.us =
+            r.t.iter()
+                .map(|t| amp * (ratio * w * (t - t0 + 0.5 * dt)).sin())
+                .collect();
+        let mut est = Estimator::new(&m)
+            .with_gravity(LAB_G as f32)
+            .unwrap()
+            .with_source_interval((1.0 / rate) as f32)
+            .unwrap();
+        let mut outs = Vec::new();
+        track_each(&mut est, &r, dt, None, |_, out| outs.push(out.clone())).unwrap();
+        for out in [&outs[63], outs.last().unwrap()] {
+            let (l, s) = (f64::from(out.params[0]), f64::from(out.param_std[0]));
+            errors.push((l / length - 1.0).abs());
+            covered += usize::from((l - length).abs() <= 2.0 * s);
+            assert!(!out.trust.is_trusted(), "{length} m: trusted under a drive");
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    // Tolerances: every length within 5% (the largest seen 4.6%: Coulomb
+    // friction, which the equation lacks), the median within 0.5% (seen
+    // 0.24%), the 2-std band covering at least 44 of the 48 readings (seen
+    // 46).
+    assert!(errors[47] <= 0.05, "{errors:?}");
+    assert!(errors[24] <= 0.005, "{errors:?}");
+    assert!(covered >= 44, "{covered} of 48");
 }
