@@ -7,7 +7,7 @@
 //! `docs/seeds.md`), in the blobs' range: 2, 3.5 and 5 m, steps, sines
 //! and a swing-up controller's torques, 10 each (90).
 
-use estimator::{Estimator, Model, Reason, StepOutput, Trust};
+use estimator::{Estimator, Model, Reason, StepOutput};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use trainer_core::data::import::{self, ImportOptions};
@@ -64,13 +64,9 @@ fn a_declared_torque_reads_every_driven_rod_within_five_percent() {
             assert!(err <= 0.05 * length, "{blob}: {l} for {length}");
             assert!(err <= 2.0 * s, "{blob}: {l} +- {s} for {length}");
             assert!(s <= 0.05 * length, "{blob}: a std of {s} at {length}");
-            // Not trusted: pending, or untrusted as driven.
+            // Untrusted as driven, at once (not pending).
             let driven = out.trust.reasons().contains(&Reason::Driven);
-            assert!(
-                matches!(out.trust, Trust::Pending) || driven,
-                "{blob}: {:?}",
-                out.trust
-            );
+            assert!(driven, "{blob}: {:?}", out.trust);
         }
     }
 }

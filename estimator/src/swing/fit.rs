@@ -469,6 +469,25 @@ mod tests {
         }
     }
 
+    /// Two segments' readings join between them, nearer the sharper, the
+    /// same either way round, never below the driven floor.
+    #[test]
+    fn segments_join_by_inverse_variance_above_the_floor() {
+        let pairs = [
+            ((5.0f32, 0.02f32), (5.2f32, 0.04f32)),
+            ((3.0, 0.015), (3.0, 0.015)),
+            ((7.5, 0.1), (7.0, 0.016)),
+        ];
+        for (a, b) in pairs {
+            let (w, rel) = joined(a, b);
+            assert_eq!((w, rel), joined(b, a));
+            assert!(w >= a.0.min(b.0) && w <= a.0.max(b.0), "{w}");
+            let sharper = if a.1 * a.0 <= b.1 * b.0 { a.0 } else { b.0 };
+            assert!((w - sharper).abs() <= 0.5 * (a.0 - b.0).abs() + 1e-6, "{w}");
+            assert!(rel >= REL_FLOOR_DRIVEN, "{rel}");
+        }
+    }
+
     /// Beyond the series' range, the sine and cosine by quadrant against
     /// `libm`'s, over two turns either way.
     #[test]

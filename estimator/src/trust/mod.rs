@@ -246,7 +246,8 @@ pub enum Trust {
     /// started afresh (an offset found) less than
     /// [`WINDOW`](crate::WINDOW) updates ago, or every check passed with
     /// the first parameter's standard deviation above 5% of it after the
-    /// parameters were reopened: no verdict yet.
+    /// parameters were reopened: no verdict yet. (Not for a driven run,
+    /// which is untrusted at once: [`Reason::Driven`].)
     Pending,
     /// Every check passed (and, after the parameters were reopened, the
     /// length's standard deviation is within 5% of it).
@@ -335,7 +336,8 @@ pub(crate) struct Checks {
 impl Checks {
     /// The verdict.
     pub fn verdict(&self) -> Trust {
-        if self.corrections < 2 || self.afresh {
+        // A driven run is never trusted: its verdict need not wait.
+        if (self.corrections < 2 || self.afresh) && self.free {
             return Trust::Pending;
         }
         let fits = self.period_confirms;
@@ -412,6 +414,12 @@ mod tests {
             ..all_ok
         };
         assert_eq!(afresh.verdict(), Trust::Pending);
+        // Driven, the verdict does not wait: untrusted at once.
+        let driven_afresh = Checks {
+            free: false,
+            ..afresh
+        };
+        assert_eq!(driven_afresh.verdict().reasons(), &[Reason::Driven]);
         let vague = Checks {
             vague: true,
             ..all_ok
