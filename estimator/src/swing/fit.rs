@@ -83,7 +83,7 @@ const MIN_PERIODS: f32 = 1.0;
 ///
 /// Unit: dimensionless (periods seen, a float). Set by hand at half a
 /// period, below the 0.87 that 64 measurements of the protocol's longest
-/// rod (5 m) show; on tuning seed 5 (ours and gymnasium's, module
+/// rod (5 m) show; on tuning seed 5 (ours and gymnasium's,
 /// `docs/driven`) every in-range rollout then reads within 5%.
 const MIN_PERIODS_DRIVEN: f32 = 0.5;
 /// The least relative standard deviation of `w0^2`.
