@@ -158,9 +158,22 @@ fn a_long_driven_recording_stays_read_by_the_fit() {
 /// to 1.8 times the swing's frequency, 20 s, imported at the blob's 0.04
 /// s; the declared torque is the drive's value at each step's middle
 /// (its gain is the fit's unknown, so any unit will do). Drawn from seed
-/// 12 of this test's own.
+/// 12 of this test's own; as filmed, and again with a log's artefacts (5%
+/// of the frames dropped, 1% spikes, the stamps rounded to 0.01 s).
 #[test]
 fn a_driven_lab_string_reads_within_five_percent() {
+    let logged = Artefacts {
+        stamp_round: 0.01,
+        dropped: 0.05,
+        spikes: 0.01,
+    };
+    for artefacts in [Artefacts::NONE, logged] {
+        driven_lab_strings(artefacts);
+    }
+}
+
+/// [`a_driven_lab_string_reads_within_five_percent`] with `artefacts`.
+fn driven_lab_strings(artefacts: Artefacts) {
     let bytes = host_tests::rig_blob();
     let m = Model::from_bytes(&bytes).unwrap();
     let dt = f64::from(m.blob().body.dt);
@@ -190,7 +203,7 @@ fn a_driven_lab_string_reads_within_five_percent() {
             effects: vec![Effect::new(kind, coefficient)],
             offset: rng.random_range(-0.05..0.05),
             forcing: Some((amp, ratio * w)),
-            artefacts: Artefacts::NONE,
+            artefacts,
         };
         let rec = spec.record(&mut ChaCha8Rng::seed_from_u64(k as u64));
         let opts = ImportOptions {
@@ -218,10 +231,10 @@ fn a_driven_lab_string_reads_within_five_percent() {
         }
     }
     errors.sort_by(f64::total_cmp);
-    // Tolerances: every length within 5% (the largest seen 4.6%: Coulomb
-    // friction, which the equation lacks), the median within 0.5% (seen
-    // 0.24%), the 2-std band covering at least 44 of the 48 readings (seen
-    // 46).
+    // Tolerances: every length within 5% (the largest seen 4.6% as
+    // filmed, 4.7% logged: Coulomb friction, which the equation lacks), the
+    // median within 0.5% (seen 0.24%, 0.26%), the 2-std band covering at
+    // least 44 of the 48 readings (seen 46 and 46).
     assert!(errors[47] <= 0.05, "{errors:?}");
     assert!(errors[24] <= 0.005, "{errors:?}");
     assert!(covered >= 44, "{covered} of 48");

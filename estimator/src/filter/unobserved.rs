@@ -96,7 +96,7 @@ impl Estimator<'_> {
         self.decay.tick(self.model.blob().body.dt);
         self.period.gap();
         self.early.gap();
-        self.fit.gap();
+        self.fit.gap(self.model.blob().body.dt);
         Ok(())
     }
 

@@ -44,7 +44,8 @@
 //! [`FIT_STEPS`] (the double integrals' terms grow with the time fitted),
 //! and the segments' readings, each from its own measurements, join by
 //! inverse variance (no deviation below the floor, which is the fit's
-//! error, not its noise).
+//! error, not its noise). A step without a measurement closes its
+//! segment where a free fit starts again.
 
 /// Steps the fit runs at least (two windows), and on until the period
 /// reads.
@@ -198,15 +199,19 @@ impl Fit {
     #[cold]
     #[inline(never)]
     fn close_segment(&mut self, dt: f32) {
-        let past = match (self.segment(dt, 0.0), self.past) {
-            (Some(now), Some(before)) => Some(joined(now, before)),
-            (now, before) => now.or(before),
-        };
         *self = Fit {
             driven: true,
-            past,
+            past: self.with_segment(dt),
             ..Fit::default()
         };
+    }
+
+    /// The closed segments' reading joined with this one's.
+    fn with_segment(&self, dt: f32) -> Option<(f32, f32)> {
+        match (self.segment(dt, 0.0), self.past) {
+            (Some(now), Some(before)) => Some(joined(now, before)),
+            (now, before) => now.or(before),
+        }
     }
 
     /// The integrals to `theta`, and its row rotated in.
@@ -235,11 +240,18 @@ impl Fit {
         }
     }
 
-    /// A step without a measurement: the fit starts again.
-    pub(crate) fn gap(&mut self) {
+    /// A step without a measurement (`dt` the step): the fit starts
+    /// again; a driven one keeps what it read so far as a closed segment.
+    pub(crate) fn gap(&mut self, dt: f32) {
         if !self.done {
+            let (driven, past) = if self.driven {
+                (true, self.with_segment(dt))
+            } else {
+                (false, self.past)
+            };
             *self = Fit {
-                past: self.past,
+                driven,
+                past,
                 ..Fit::default()
             };
         }
