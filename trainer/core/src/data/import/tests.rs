@@ -3,6 +3,16 @@
 use super::*;
 use std::path::Path;
 
+/// A recording of the angle alone (no rate, no torque).
+fn angle_only(theta: Vec<f64>, t: Vec<f64>) -> Recording {
+    Recording {
+        theta,
+        t,
+        theta_dot: None,
+        torque: None,
+    }
+}
+
 /// A driven rig's torque column is found by its name (`u`, `torque`,
 /// `tau`, a unit in brackets) or given, and held onto the grid: each
 /// grid time takes the torque of the last row at or before it.
@@ -98,12 +108,7 @@ fn an_encoder_logged_per_count_keeps_its_turning_points() {
     for a in [0.05, 0.1] {
         let (q, w) = (0.0015, 3.5);
         let truth = |t: f64| a * (w * t).cos();
-        let mut rec = Recording {
-            t: Vec::new(),
-            theta: Vec::new(),
-            theta_dot: None,
-            torque: None,
-        };
+        let mut rec = angle_only(Vec::new(), Vec::new());
         let mut last = f64::NAN;
         for k in 0..20_000 {
             let t = k as f64 * 0.001;
@@ -153,12 +158,7 @@ fn the_source_is_recorded_and_its_glitches_dropped() {
     let w = (9.81f64 / 0.9).sqrt();
     let mut t: Vec<f64> = (0..360).map(|k| k as f64 / 12.0).collect();
     t.remove(100);
-    let clean = Recording {
-        theta: t.iter().map(|&x| 0.58 * (w * x).cos()).collect(),
-        t,
-        theta_dot: None,
-        torque: None,
-    };
+    let clean = angle_only(t.iter().map(|&x| 0.58 * (w * x).cos()).collect(), t);
     let opts = ImportOptions {
         dt: 0.04,
         ..ImportOptions::default()
@@ -179,12 +179,7 @@ fn the_source_is_recorded_and_its_glitches_dropped() {
         assert!((a[1] - b[1]).abs() < 0.1, "{a:?} vs {b:?}");
     }
     let t: Vec<f64> = (0..500).map(|k| k as f64 * 0.04).collect();
-    let at_25 = Recording {
-        theta: t.iter().map(|&x| 0.58 * (w * x).cos()).collect(),
-        t,
-        theta_dot: None,
-        torque: None,
-    };
+    let at_25 = angle_only(t.iter().map(|&x| 0.58 * (w * x).cos()).collect(), t);
     let (_, source) = to_rollout_with_source(&at_25, 1, &opts).unwrap();
     assert!(!source.interpolated);
 }
@@ -197,17 +192,7 @@ fn a_gap_is_left_out_not_interpolated_across() {
     // gap's grid points left out, nothing interpolated across it.
     let mut t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
     t.extend((0..200).map(|k| 102.0 + k as f64 * 0.01));
-    let r = to_rollout(
-        &Recording {
-            theta: swing(&t),
-            t: t.clone(),
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap();
+    let r = to_rollout(&angle_only(swing(&t), t.clone()), 1, &opts).unwrap();
     let jumps: Vec<f64> =
         r.t.windows(2)
             .map(|w| w[1] - w[0])
@@ -231,17 +216,7 @@ fn a_gap_is_left_out_not_interpolated_across() {
     let mut theta = swing(&t);
     t.push(1e6);
     theta.push(*theta.last().unwrap());
-    let r = to_rollout(
-        &Recording {
-            theta,
-            t,
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap();
+    let r = to_rollout(&angle_only(theta, t), 1, &opts).unwrap();
     assert!(*r.t.last().unwrap() < 20.0, "{:?}", r.t.last());
 }
 
@@ -254,18 +229,9 @@ fn milliseconds_read_as_seconds_and_a_gap_over_ten_minutes_are_named() {
     // Time stamps a second apart or more (milliseconds read as
     // seconds): an error that says so.
     let t: Vec<f64> = (0..200).map(|k| k as f64 * 20.0).collect();
-    let e = to_rollout(
-        &Recording {
-            theta: swing(&t),
-            t,
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = to_rollout(&angle_only(swing(&t), t), 1, &opts)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("milliseconds"), "{e}");
     // A gap over GAP_MAX_S is not predicted across.
     let e = super::super::model_steps(&[0.0, 0.04, 0.04 + 1e6], 0.04).unwrap_err();
@@ -280,33 +246,15 @@ fn a_flat_line_and_the_wrong_unit_are_named() {
     let swing = |t: &[f64]| t.iter().map(|&x| 0.5 * (3.0 * x).cos()).collect::<Vec<_>>();
     let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
     // A flat line.
-    let e = to_rollout(
-        &Recording {
-            theta: vec![0.3; 200],
-            t: t.clone(),
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = to_rollout(&angle_only(vec![0.3; 200], t.clone()), 1, &opts)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("flat line"), "{e}");
     // Degrees read as radians: a swing of +-30 "rad".
     let deg: Vec<f64> = swing(&t).iter().map(|v| 60.0 * v).collect();
-    let e = to_rollout(
-        &Recording {
-            theta: deg,
-            t: t.clone(),
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = to_rollout(&angle_only(deg, t.clone()), 1, &opts)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("--unit degrees"), "{e}");
     // Radians read as degrees: a swing of 0.017 rad.
     let tiny: Vec<f64> = swing(&t).iter().map(|v| v.to_radians()).collect();
@@ -314,18 +262,9 @@ fn a_flat_line_and_the_wrong_unit_are_named() {
         unit: Unit::Degrees,
         ..ImportOptions::default()
     };
-    let e = to_rollout(
-        &Recording {
-            theta: tiny,
-            t: t.clone(),
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &degrees,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = to_rollout(&angle_only(tiny, t.clone()), 1, &degrees)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("--unit radians"), "{e}");
     // So is the video files' swing of 0.58 rad either way in radians,
     // read as degrees (a span of 0.020 rad, over the 0.02 of radians).
@@ -333,31 +272,12 @@ fn a_flat_line_and_the_wrong_unit_are_named() {
         .iter()
         .map(|x| (0.58 * (4.0 * x).cos()).to_radians())
         .collect();
-    let e = to_rollout(
-        &Recording {
-            theta: video,
-            t: t.clone(),
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &degrees,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = to_rollout(&angle_only(video, t.clone()), 1, &degrees)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("--unit radians"), "{e}");
     // A single swing (0.6 s at 100 Hz) imports.
     let one: Vec<f64> = t[..60].to_vec();
-    let r = to_rollout(
-        &Recording {
-            theta: swing(&one),
-            t: one,
-            theta_dot: None,
-            torque: None,
-        },
-        1,
-        &opts,
-    )
-    .unwrap();
+    let r = to_rollout(&angle_only(swing(&one), one), 1, &opts).unwrap();
     assert_eq!(r.xs.len(), 12);
 }
