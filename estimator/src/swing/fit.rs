@@ -209,7 +209,7 @@ impl Fit {
     /// The closed segments' reading joined with this one's.
     fn with_segment(&self, dt: f32) -> Option<(f32, f32)> {
         match (self.segment(dt, 0.0), self.past) {
-            (Some(now), Some(before)) => Some(joined(now, before)),
+            (Some(now), Some(before)) => Some(join_segments(now, before)),
             (now, before) => now.or(before),
         }
     }
@@ -341,7 +341,7 @@ impl Fit {
         };
         let before = (before.0, before.1 * scale);
         Some(match self.segment(dt, source_dt) {
-            Some(now) => joined(now, before),
+            Some(now) => join_segments(now, before),
             None => before,
         })
     }
@@ -428,7 +428,7 @@ impl Fit {
 /// Two readings of `w0^2` with their relative standard deviations joined
 /// by inverse variance; the deviation no smaller than the driven floor
 /// (the fit's error repeats from segment to segment).
-fn joined((w_a, r_a): (f32, f32), (w_b, r_b): (f32, f32)) -> (f32, f32) {
+fn join_segments((w_a, r_a): (f32, f32), (w_b, r_b): (f32, f32)) -> (f32, f32) {
     let (v_a, v_b) = ((r_a * w_a) * (r_a * w_a), (r_b * w_b) * (r_b * w_b));
     if v_a + v_b <= 0.0 || (v_a + v_b).is_nan() {
         return (w_a, r_a);
@@ -491,8 +491,8 @@ mod tests {
             ((7.5, 0.1), (7.0, 0.016)),
         ];
         for (a, b) in pairs {
-            let (w, rel) = joined(a, b);
-            assert_eq!((w, rel), joined(b, a));
+            let (w, rel) = join_segments(a, b);
+            assert_eq!((w, rel), join_segments(b, a));
             assert!(w >= a.0.min(b.0) && w <= a.0.max(b.0), "{w}");
             let sharper = if a.1 * a.0 <= b.1 * b.0 { a.0 } else { b.0 };
             assert!((w - sharper).abs() <= 0.5 * (a.0 - b.0).abs() + 1e-6, "{w}");
