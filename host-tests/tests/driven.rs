@@ -14,7 +14,7 @@ use trainer_core::data::import::{self, ImportOptions};
 use trainer_core::data::lab::{Artefacts, Case, LAB_G, LabSpec, Stamps};
 use trainer_core::data::{Physics, driven_test_set, states_f32};
 use trainer_core::physics::drive::DriveKind;
-use trainer_core::physics::{Effect, EffectKind, Rig};
+use trainer_core::physics::{Effect, EffectKind, Pendulum, Rig, RigPhysics};
 use trainer_core::track::track_each;
 
 /// The blobs and the relative accuracy each is held to.
@@ -90,15 +90,10 @@ fn an_undeclared_torque_is_never_trusted_wrong() {
 /// measurements 0.05 s apart (RK4 at dt / 10, the protocol's ODE), each
 /// with the torque held before it.
 fn long_driven(length: f64, from: usize, n: usize) -> Vec<([f32; 2], f32)> {
-    let (g, dt) = (10.0, 0.05);
-    let w0 = (1.5 * g / length).sqrt();
+    let dt = 0.05;
+    let rod = Pendulum::new(length);
+    let w0 = rod.rig.w2(rod.g, length).sqrt();
     let torque = |t: f64| 1.2 * (0.9 * w0 * t).sin() + 0.6 * (1.7 * w0 * t).sin();
-    let f = |x: [f64; 2], u: f64| {
-        [
-            x[1],
-            -1.5 * g / length * x[0].sin() + 3.0 * u / (length * length),
-        ]
-    };
     let (mut x, mut out, mut u_before) = ([0.3f64, 0.0], Vec::new(), 0.0f32);
     for k in 0..n {
         out.push(([x[0] as f32, x[1] as f32], u_before));
@@ -107,17 +102,7 @@ fn long_driven(length: f64, from: usize, n: usize) -> Vec<([f32; 2], f32)> {
         } else {
             0.0
         };
-        let h = dt / 10.0;
-        for _ in 0..10 {
-            let k1 = f(x, u);
-            let k2 = f([x[0] + 0.5 * h * k1[0], x[1] + 0.5 * h * k1[1]], u);
-            let k3 = f([x[0] + 0.5 * h * k2[0], x[1] + 0.5 * h * k2[1]], u);
-            let k4 = f([x[0] + h * k3[0], x[1] + h * k3[1]], u);
-            x = [
-                x[0] + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
-                x[1] + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
-            ];
-        }
+        x = rod.step(x, u, dt);
         u_before = u as f32;
     }
     out
@@ -249,21 +234,18 @@ fn driven_lab_strings(artefacts: Artefacts) {
 /// 1%.
 #[test]
 fn a_users_driven_log_imports_and_reads_within_one_percent() {
-    let (length, g, rate) = (2.6f64, 10.0, 200.0);
-    let w0 = (1.5 * g / length).sqrt();
+    let (length, rate) = (2.6f64, 200.0);
+    let rod = Pendulum::new(length);
+    let w0 = rod.rig.w2(rod.g, length).sqrt();
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    let (mut th, mut om, h) = (0.4f64, 0.0f64, 1.0 / rate);
+    let (mut x, h) = ([0.4f64, 0.0], 1.0 / rate);
     let mut text = String::from("time (s),angle (rad),torque (N m)\n");
     for k in 0..(12.0 * rate) as usize {
         let t = k as f64 * h;
         let u = 1.2 * (0.7 * w0 * t).sin();
         let noise: f64 = rng.random_range(-0.005..0.005);
-        text.push_str(&format!("{t:.4},{:.6},{u:.4}\n", th + noise));
-        for _ in 0..10 {
-            // Semi-implicit Euler at h / 10 (an error of 1e-7 a period).
-            om += h / 10.0 * (-1.5 * g / length * th.sin() + 3.0 * u / (length * length));
-            th += h / 10.0 * om;
-        }
+        text.push_str(&format!("{t:.4},{:.6},{u:.4}\n", x[0] + noise));
+        x = rod.step(x, u, h);
     }
     let path = host_tests::exports::file("driven-log.csv", text.as_bytes());
     let bytes = std::fs::read(host_tests::root().join("weights/pendulum-bilinear.kkf")).unwrap();
